@@ -1,0 +1,796 @@
+//! The scenes mirage carries in its binary: the default Cornell box and the test scenes that
+//! `tools/gen_scenes` writes to `scenes/` as glTF (see scenes/README.md for what each tests).
+//!
+//! Built with a few geometric helpers (quads, boxes, walls with rectangular holes, icospheres)
+//! so that the scenes are exact, small and documented in one place.
+
+use std::f32::consts::PI;
+
+use glam::{Mat3, Vec3, vec3};
+
+use super::desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, ScatterDesc, SceneDesc};
+
+/// Names of the built-in scenes, in the order of scenes/README.md.
+pub const NAMES: [&str; 7] = [
+    "cornell",
+    "furnace",
+    "ajar-door",
+    "left-right",
+    "direct-indirect",
+    "light-box",
+    "glass-sphere",
+];
+
+/// The built-in scene called `name`, if there is one.
+pub fn by_name(name: &str) -> Option<SceneDesc> {
+    Some(match name {
+        "cornell" => cornell(),
+        "furnace" => furnace(),
+        "ajar-door" => ajar_door(),
+        "left-right" => left_right(),
+        "direct-indirect" => direct_indirect(),
+        "light-box" => light_box(),
+        "glass-sphere" => glass_sphere(),
+        _ => return None,
+    })
+}
+
+/// Incrementally builds a [`SceneDesc`] out of named parts.
+pub struct Builder {
+    desc: SceneDesc,
+    name: String,
+}
+
+impl Builder {
+    /// An empty scene called `name`.
+    pub fn new(name: &str) -> Self {
+        Builder {
+            desc: SceneDesc::default(),
+            name: name.to_string(),
+        }
+    }
+
+    /// Adds a material and returns its index.
+    pub fn material(&mut self, m: MaterialDesc) -> usize {
+        self.desc.materials.push(m);
+        self.desc.materials.len() - 1
+    }
+
+    /// Adds a Lambertian material.
+    pub fn diffuse(&mut self, name: &str, albedo: Vec3) -> usize {
+        self.material(MaterialDesc::diffuse(name, albedo))
+    }
+
+    /// Adds a black, single-sided emitter of radiance `le` (W/(m²·sr)).
+    pub fn emitter(&mut self, name: &str, le: Vec3) -> usize {
+        let mut m = MaterialDesc::diffuse(name, Vec3::ZERO);
+        m.emission = le;
+        self.material(m)
+    }
+
+    /// Adds a triangle list (three positions per triangle, CCW = front) as one mesh.
+    pub fn triangles(&mut self, part: &str, material: usize, tris: &[[Vec3; 3]]) {
+        let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
+        let indices = (0..positions.len() as u32).collect();
+        self.desc.meshes.push(MeshDesc {
+            origin: Origin::Builtin(format!("{} {}", self.name, part)),
+            positions,
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            indices,
+            material,
+        });
+    }
+
+    /// Adds an indexed mesh with optional vertex normals.
+    pub fn indexed(
+        &mut self,
+        part: &str,
+        material: usize,
+        positions: Vec<Vec3>,
+        normals: Vec<Vec3>,
+        indices: Vec<u32>,
+    ) {
+        self.desc.meshes.push(MeshDesc {
+            origin: Origin::Builtin(format!("{} {}", self.name, part)),
+            positions,
+            normals,
+            uvs: Vec::new(),
+            indices,
+            material,
+        });
+    }
+
+    /// Sets the camera.
+    pub fn camera(&mut self, eye: Vec3, target: Vec3, fov_y_deg: f32, width: u32, height: u32) {
+        self.desc.camera = Some(CameraDesc {
+            eye,
+            target,
+            up: Vec3::Y,
+            fov_y_deg,
+            aspect: Some(width as f32 / height as f32),
+            width: Some(width),
+            height: Some(height),
+        });
+    }
+
+    /// The finished description.
+    pub fn finish(self) -> SceneDesc {
+        self.desc
+    }
+}
+
+/// Two triangles of the quad a→b→c→d (CCW seen from the front).
+pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [[Vec3; 3]; 2] {
+    [[a, b, c], [a, c, d]]
+}
+
+/// An axis-aligned rectangle at `origin` spanned by `u * width` and `v * height`, facing
+/// `u × v`, with rectangular holes given as (u0, v0, u1, v1) in the rectangle's units. The
+/// rectangle is cut into a grid along the hole edges so that the triangles stay well shaped.
+pub fn rect_with_holes(
+    origin: Vec3,
+    u: Vec3,
+    v: Vec3,
+    width: f32,
+    height: f32,
+    holes: &[[f32; 4]],
+) -> Vec<[Vec3; 3]> {
+    let mut us = vec![0.0, width];
+    let mut vs = vec![0.0, height];
+    for h in holes {
+        us.extend([h[0], h[2]]);
+        vs.extend([h[1], h[3]]);
+    }
+    for list in [&mut us, &mut vs] {
+        list.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        list.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    }
+    let mut tris = Vec::new();
+    for i in 0..us.len() - 1 {
+        for j in 0..vs.len() - 1 {
+            let (cu, cv) = (0.5 * (us[i] + us[i + 1]), 0.5 * (vs[j] + vs[j + 1]));
+            if holes
+                .iter()
+                .any(|h| cu > h[0] && cu < h[2] && cv > h[1] && cv < h[3])
+            {
+                continue;
+            }
+            let p = |a: f32, b: f32| origin + u * a + v * b;
+            tris.extend(quad(
+                p(us[i], vs[j]),
+                p(us[i + 1], vs[j]),
+                p(us[i + 1], vs[j + 1]),
+                p(us[i], vs[j + 1]),
+            ));
+        }
+    }
+    tris
+}
+
+/// The six faces of the box [lo, hi], facing outwards (`inward = false`) or inwards.
+pub fn cuboid(lo: Vec3, hi: Vec3, inward: bool) -> Vec<[Vec3; 3]> {
+    let c = |x: bool, y: bool, z: bool| {
+        vec3(
+            if x { hi.x } else { lo.x },
+            if y { hi.y } else { lo.y },
+            if z { hi.z } else { lo.z },
+        )
+    };
+    let faces = [
+        quad(
+            c(false, false, false),
+            c(false, false, true),
+            c(false, true, true),
+            c(false, true, false),
+        ), // -x
+        quad(
+            c(true, false, false),
+            c(true, true, false),
+            c(true, true, true),
+            c(true, false, true),
+        ), // +x
+        quad(
+            c(false, false, false),
+            c(true, false, false),
+            c(true, false, true),
+            c(false, false, true),
+        ), // -y
+        quad(
+            c(false, true, false),
+            c(false, true, true),
+            c(true, true, true),
+            c(true, true, false),
+        ), // +y
+        quad(
+            c(false, false, false),
+            c(false, true, false),
+            c(true, true, false),
+            c(true, false, false),
+        ), // -z
+        quad(
+            c(false, false, true),
+            c(true, false, true),
+            c(true, true, true),
+            c(false, true, true),
+        ), // +z
+    ];
+    let mut tris: Vec<[Vec3; 3]> = faces.iter().flatten().copied().collect();
+    if inward {
+        for t in &mut tris {
+            t.swap(1, 2);
+        }
+    }
+    tris
+}
+
+/// A geodesic sphere: the icosahedron subdivided `level` times, vertices on the sphere,
+/// triangles facing outwards. Returns (positions, unit normals, indices).
+pub fn icosphere(center: Vec3, radius: f32, level: u32) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
+    let t = (1.0 + 5.0f32.sqrt()) / 2.0;
+    let mut verts: Vec<Vec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| vec3(x, y, z).normalize())
+    .collect();
+    let mut faces: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut cache = std::collections::HashMap::new();
+        let mut mid = |a: u32, b: u32, verts: &mut Vec<Vec3>| -> u32 {
+            let key = (a.min(b), a.max(b));
+            *cache.entry(key).or_insert_with(|| {
+                verts.push(((verts[a as usize] + verts[b as usize]) * 0.5).normalize());
+                verts.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::with_capacity(faces.len() * 4);
+        for [a, b, c] in faces {
+            let ab = mid(a, b, &mut verts);
+            let bc = mid(b, c, &mut verts);
+            let ca = mid(c, a, &mut verts);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        faces = next;
+    }
+    let positions = verts.iter().map(|&n| center + n * radius).collect();
+    let indices = faces.iter().flatten().copied().collect();
+    (positions, verts, indices)
+}
+
+/// Rotates the points of `tris` about the vertical axis through `pivot` by `angle` radians.
+fn rotate_y(tris: &mut [[Vec3; 3]], pivot: Vec3, angle: f32) {
+    let m = Mat3::from_rotation_y(angle);
+    for t in tris.iter_mut() {
+        for p in t.iter_mut() {
+            *p = pivot + m * (*p - pivot);
+        }
+    }
+}
+
+const WHITE: Vec3 = vec3(0.73, 0.73, 0.73);
+const RED: Vec3 = vec3(0.63, 0.065, 0.05);
+const GREEN: Vec3 = vec3(0.14, 0.45, 0.091);
+/// Radiance of the Cornell box light (the usual 17, 12, 4 of many reference renderers).
+const CORNELL_LE: Vec3 = vec3(17.0, 12.0, 4.0);
+
+fn cornell_shell(b: &mut Builder, with_short_block: bool) {
+    // Cornell's measured data in millimetres, scaled to metres × 10 (the box is 5.5 units).
+    let s = 0.01;
+    let p = |x: f32, y: f32, z: f32| vec3(x, y, z) * s;
+    let white = b.diffuse("white", WHITE);
+    let red = b.diffuse("red", RED);
+    let green = b.diffuse("green", GREEN);
+    let light = b.emitter("light", CORNELL_LE);
+    // Walls face the inside of the box.
+    let floor = quad(
+        p(552.8, 0.0, 0.0),
+        p(0.0, 0.0, 0.0),
+        p(0.0, 0.0, 559.2),
+        p(549.6, 0.0, 559.2),
+    );
+    let ceiling = quad(
+        p(556.0, 548.8, 0.0),
+        p(556.0, 548.8, 559.2),
+        p(0.0, 548.8, 559.2),
+        p(0.0, 548.8, 0.0),
+    );
+    let back = quad(
+        p(549.6, 0.0, 559.2),
+        p(0.0, 0.0, 559.2),
+        p(0.0, 548.8, 559.2),
+        p(556.0, 548.8, 559.2),
+    );
+    let green_wall = quad(
+        p(0.0, 0.0, 559.2),
+        p(0.0, 0.0, 0.0),
+        p(0.0, 548.8, 0.0),
+        p(0.0, 548.8, 559.2),
+    );
+    let red_wall = quad(
+        p(552.8, 0.0, 0.0),
+        p(549.6, 0.0, 559.2),
+        p(556.0, 548.8, 559.2),
+        p(556.0, 548.8, 0.0),
+    );
+    let mut whites: Vec<[Vec3; 3]> = [floor, ceiling, back].iter().flatten().copied().collect();
+    b.triangles("red wall", red, &red_wall);
+    b.triangles("green wall", green, &green_wall);
+    // The light sits just below the ceiling and faces down.
+    let lamp = quad(
+        p(343.0, 548.7, 227.0),
+        p(343.0, 548.7, 332.0),
+        p(213.0, 548.7, 332.0),
+        p(213.0, 548.7, 227.0),
+    );
+    b.triangles("light", light, &lamp);
+    let block = |top: [(f32, f32); 4], h: f32| -> Vec<[Vec3; 3]> {
+        let mut t = Vec::new();
+        let v = |i: usize, y: f32| p(top[i].0, y, top[i].1);
+        t.extend(quad(v(0, h), v(1, h), v(2, h), v(3, h)));
+        for i in 0..4 {
+            let j = (i + 1) % 4;
+            t.extend(quad(v(i, 0.0), v(j, 0.0), v(j, h), v(i, h)));
+        }
+        t
+    };
+    if with_short_block {
+        whites.extend(block(
+            [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)],
+            165.0,
+        ));
+    }
+    whites.extend(block(
+        [
+            (423.0, 247.0),
+            (265.0, 296.0),
+            (314.0, 456.0),
+            (472.0, 406.0),
+        ],
+        330.0,
+    ));
+    b.triangles("white walls and blocks", white, &whites);
+    // The classic camera: 35 mm lens on a 25 mm film, 8 m in front of the box.
+    b.camera(
+        p(278.0, 273.0, -800.0),
+        p(278.0, 273.0, 0.0),
+        39.3077,
+        256,
+        256,
+    );
+}
+
+/// The Cornell box (classic dimensions and albedos), the default scene.
+pub fn cornell() -> SceneDesc {
+    let mut b = Builder::new("cornell");
+    cornell_shell(&mut b, true);
+    b.finish()
+}
+
+/// Cornell box whose short block is replaced by a glass sphere (index 1.5) that focuses a
+/// caustic on the floor.
+pub fn glass_sphere() -> SceneDesc {
+    let mut b = Builder::new("glass-sphere");
+    cornell_shell(&mut b, false);
+    let glass = b.material(MaterialDesc {
+        name: "glass".into(),
+        base_color: Vec3::ONE,
+        base_color_texture: None,
+        scatter: ScatterDesc::Dielectric { ior: 1.5 },
+        emission: Vec3::ZERO,
+        emission_texture: None,
+        double_sided: false,
+    });
+    let (p, n, i) = icosphere(vec3(1.85, 0.9, 1.7), 0.9, 4);
+    b.indexed("glass sphere", glass, p, n, i);
+    b.finish()
+}
+
+/// A closed sphere (inward-facing, albedo 0.5, emitting Le = 1 everywhere): the radiance
+/// is Le / (1 − ρ) = 2 in every direction at every point (the furnace test).
+pub fn furnace() -> SceneDesc {
+    let mut b = Builder::new("furnace");
+    let m = b.material(MaterialDesc {
+        name: "furnace wall".into(),
+        base_color: Vec3::splat(0.5),
+        base_color_texture: None,
+        scatter: ScatterDesc::Diffuse,
+        emission: Vec3::ONE,
+        emission_texture: None,
+        double_sided: false,
+    });
+    let (p, _, mut i) = icosphere(Vec3::ZERO, 1.0, 3);
+    // Face inwards: the emitting front side must face the inside.
+    for t in i.chunks_mut(3) {
+        t.swap(1, 2);
+    }
+    b.indexed("sphere", m, p, Vec::new(), i);
+    b.camera(vec3(0.0, 0.0, 0.3), vec3(0.0, 0.0, -1.0), 60.0, 64, 64);
+    b.finish()
+}
+
+/// Two rooms joined by a door opened 6°: the only light is in the far room, so the camera
+/// sees only light that came through the crack.
+pub fn ajar_door() -> SceneDesc {
+    let mut b = Builder::new("ajar-door");
+    let wall = b.diffuse("wall", Vec3::splat(0.75));
+    let floor = b.diffuse("floor", vec3(0.6, 0.5, 0.4));
+    let door = b.diffuse("door", vec3(0.5, 0.3, 0.2));
+    let light = b.emitter("light", Vec3::splat(60.0));
+    let (h, dz0, dz1, dh) = (2.5f32, 1.5f32, 2.5f32, 2.0f32);
+    // Room A (camera) x in [0, 4], room B (light) x in [4, 7]; both z in [0, 4].
+    let mut walls = Vec::new();
+    let mut floors = Vec::new();
+    for (x0, x1) in [(0.0f32, 4.0f32), (4.0, 7.0)] {
+        floors.extend(quad(
+            vec3(x0, 0.0, 0.0),
+            vec3(x0, 0.0, 4.0),
+            vec3(x1, 0.0, 4.0),
+            vec3(x1, 0.0, 0.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, h, 0.0),
+            vec3(x1, h, 0.0),
+            vec3(x1, h, 4.0),
+            vec3(x0, h, 4.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, 0.0, 0.0),
+            vec3(x1, 0.0, 0.0),
+            vec3(x1, h, 0.0),
+            vec3(x0, h, 0.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, 0.0, 4.0),
+            vec3(x0, h, 4.0),
+            vec3(x1, h, 4.0),
+            vec3(x1, 0.0, 4.0),
+        ));
+    }
+    walls.extend(quad(
+        vec3(0.0, 0.0, 0.0),
+        vec3(0.0, h, 0.0),
+        vec3(0.0, h, 4.0),
+        vec3(0.0, 0.0, 4.0),
+    ));
+    walls.extend(quad(
+        vec3(7.0, 0.0, 0.0),
+        vec3(7.0, 0.0, 4.0),
+        vec3(7.0, h, 4.0),
+        vec3(7.0, h, 0.0),
+    ));
+    // The dividing wall at x = 4 with the doorway z in [1.5, 2.5], y in [0, 2].
+    walls.extend(rect_with_holes(
+        vec3(4.0, 0.0, 0.0),
+        Vec3::Z,
+        Vec3::Y,
+        4.0,
+        h,
+        &[[dz0, 0.0, dz1, dh]],
+    ));
+    b.triangles("walls", wall, &walls);
+    b.triangles("floors", floor, &floors);
+    // The door: a 4 cm slab hinged at z = 1.5, swung 6° into room B.
+    let mut slab = cuboid(
+        vec3(4.0, 0.0, dz0),
+        vec3(4.04, dh - 0.01, dz1 - 0.01),
+        false,
+    );
+    rotate_y(&mut slab, vec3(4.0, 0.0, dz0), -6.0 * PI / 180.0);
+    b.triangles("door", door, &slab);
+    // Ceiling light in room B, facing down, away from the door.
+    let y = h - 0.01;
+    b.triangles(
+        "light",
+        light,
+        &quad(
+            vec3(5.8, y, 0.6),
+            vec3(6.6, y, 0.6),
+            vec3(6.6, y, 1.4),
+            vec3(5.8, y, 1.4),
+        ),
+    );
+    b.camera(vec3(0.6, 1.5, 3.5), vec3(4.0, 0.9, 1.8), 60.0, 256, 192);
+    b.finish()
+}
+
+/// A corridor lit only by two side rooms (left light twice as bright as the right one);
+/// neither light is visible from the camera.
+pub fn left_right() -> SceneDesc {
+    let mut b = Builder::new("left-right");
+    let wall = b.diffuse("wall", Vec3::splat(0.75));
+    let floor = b.diffuse("floor", vec3(0.55, 0.55, 0.6));
+    let left_light = b.emitter("left light", vec3(40.0, 32.0, 24.0));
+    let right_light = b.emitter("right light", vec3(12.0, 16.0, 20.0));
+    let h = 2.5f32;
+    let mut walls = Vec::new();
+    let mut floors = Vec::new();
+    // Corridor x in [-1, 1], z in [0, 8].
+    floors.extend(quad(
+        vec3(-1.0, 0.0, 0.0),
+        vec3(-1.0, 0.0, 8.0),
+        vec3(1.0, 0.0, 8.0),
+        vec3(1.0, 0.0, 0.0),
+    ));
+    walls.extend(quad(
+        vec3(-1.0, h, 0.0),
+        vec3(1.0, h, 0.0),
+        vec3(1.0, h, 8.0),
+        vec3(-1.0, h, 8.0),
+    ));
+    walls.extend(quad(
+        vec3(-1.0, 0.0, 0.0),
+        vec3(1.0, 0.0, 0.0),
+        vec3(1.0, h, 0.0),
+        vec3(-1.0, h, 0.0),
+    ));
+    walls.extend(quad(
+        vec3(-1.0, 0.0, 8.0),
+        vec3(-1.0, h, 8.0),
+        vec3(1.0, h, 8.0),
+        vec3(1.0, 0.0, 8.0),
+    ));
+    let doorway = [[4.0, 0.0, 5.0, 2.0]];
+    walls.extend(rect_with_holes(
+        vec3(-1.0, 0.0, 0.0),
+        Vec3::Z,
+        Vec3::Y,
+        8.0,
+        h,
+        &doorway,
+    ));
+    walls.extend(rect_with_holes(
+        vec3(1.0, 0.0, 0.0),
+        Vec3::Z,
+        Vec3::Y,
+        8.0,
+        h,
+        &doorway,
+    ));
+    // Side rooms: z in [3, 6], x in [-4, -1] and [1, 4]: floor, ceiling, three walls each.
+    for (x0, x1) in [(-4.0f32, -1.0f32), (1.0, 4.0)] {
+        floors.extend(quad(
+            vec3(x0, 0.0, 3.0),
+            vec3(x0, 0.0, 6.0),
+            vec3(x1, 0.0, 6.0),
+            vec3(x1, 0.0, 3.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, h, 3.0),
+            vec3(x1, h, 3.0),
+            vec3(x1, h, 6.0),
+            vec3(x0, h, 6.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, 0.0, 3.0),
+            vec3(x1, 0.0, 3.0),
+            vec3(x1, h, 3.0),
+            vec3(x0, h, 3.0),
+        ));
+        walls.extend(quad(
+            vec3(x0, 0.0, 6.0),
+            vec3(x0, h, 6.0),
+            vec3(x1, h, 6.0),
+            vec3(x1, 0.0, 6.0),
+        ));
+        let xo = if x0 < 0.0 { x0 } else { x1 };
+        walls.extend(quad(
+            vec3(xo, 0.0, 3.0),
+            vec3(xo, h, 3.0),
+            vec3(xo, h, 6.0),
+            vec3(xo, 0.0, 6.0),
+        ));
+    }
+    b.triangles("walls", wall, &walls);
+    b.triangles("floors", floor, &floors);
+    let y = h - 0.01;
+    b.triangles(
+        "left light",
+        left_light,
+        &quad(
+            vec3(-3.6, y, 4.1),
+            vec3(-2.8, y, 4.1),
+            vec3(-2.8, y, 4.9),
+            vec3(-3.6, y, 4.9),
+        ),
+    );
+    b.triangles(
+        "right light",
+        right_light,
+        &quad(
+            vec3(2.8, y, 4.1),
+            vec3(3.6, y, 4.1),
+            vec3(3.6, y, 4.9),
+            vec3(2.8, y, 4.9),
+        ),
+    );
+    b.camera(vec3(0.0, 1.5, 0.4), vec3(0.0, 0.9, 6.0), 55.0, 256, 192);
+    b.finish()
+}
+
+/// A room where a shaded lamp throws its light on the wall behind the camera (which the
+/// camera cannot see); a small slot in the shade lights one patch of the floor directly.
+pub fn direct_indirect() -> SceneDesc {
+    let mut b = Builder::new("direct-indirect");
+    let wall = b.diffuse("wall", Vec3::splat(0.7));
+    let bright = b.diffuse("bright wall", Vec3::splat(0.9));
+    let shade = b.diffuse("shade", Vec3::splat(0.2));
+    let light = b.emitter("lamp", Vec3::splat(50.0));
+    // Room x in [-2, 2], y in [0, 3], z in [-3, 3]; camera near z = 2 looking towards -z.
+    let mut room = cuboid(vec3(-2.0, 0.0, -3.0), vec3(2.0, 3.0, 3.0), true);
+    // The +z face (behind the camera) gets its own, brighter material.
+    let back: Vec<[Vec3; 3]> = room.drain(10..12).collect();
+    b.triangles("room", wall, &room);
+    b.triangles("bright wall", bright, &back);
+    // Lamp at z = -1 near the ceiling, facing +z, inside a tube open towards +z.
+    let (x0, x1, y0, y1, z0, z1) = (-0.3f32, 0.3f32, 2.2f32, 2.8f32, -1.2f32, 0.2f32);
+    let lamp_z = z0 + 0.05;
+    b.triangles(
+        "lamp",
+        light,
+        &quad(
+            vec3(x0 + 0.02, y0 + 0.02, lamp_z),
+            vec3(x1 - 0.02, y0 + 0.02, lamp_z),
+            vec3(x1 - 0.02, y1 - 0.02, lamp_z),
+            vec3(x0 + 0.02, y1 - 0.02, lamp_z),
+        ),
+    );
+    let mut tube = Vec::new();
+    // Bottom of the tube with a small slot near the lamp; top, sides and closed back.
+    tube.extend(rect_with_holes(
+        vec3(x0, y0, z0),
+        Vec3::X,
+        Vec3::Z,
+        x1 - x0,
+        z1 - z0,
+        &[[0.25, 0.2, 0.35, 0.28]],
+    ));
+    tube.extend(rect_with_holes(
+        vec3(x0, y1, z0),
+        Vec3::X,
+        Vec3::Z,
+        x1 - x0,
+        z1 - z0,
+        &[],
+    ));
+    tube.extend(rect_with_holes(
+        vec3(x0, y0, z0),
+        Vec3::Z,
+        Vec3::Y,
+        z1 - z0,
+        y1 - y0,
+        &[],
+    ));
+    tube.extend(rect_with_holes(
+        vec3(x1, y0, z0),
+        Vec3::Z,
+        Vec3::Y,
+        z1 - z0,
+        y1 - y0,
+        &[],
+    ));
+    tube.extend(rect_with_holes(
+        vec3(x0, y0, z0),
+        Vec3::X,
+        Vec3::Y,
+        x1 - x0,
+        y1 - y0,
+        &[],
+    ));
+    b.triangles("shade", shade, &tube);
+    b.camera(vec3(0.0, 1.6, 2.0), vec3(0.0, 0.8, -3.0), 55.0, 256, 192);
+    b.finish()
+}
+
+/// A lamp enclosed in a closed box with four small holes, standing in a room: all light the
+/// camera sees has passed through a hole.
+pub fn light_box() -> SceneDesc {
+    let mut b = Builder::new("light-box");
+    let wall = b.diffuse("wall", Vec3::splat(0.7));
+    let floor = b.diffuse("floor", vec3(0.5, 0.45, 0.4));
+    let boxm = b.diffuse("box", Vec3::splat(0.6));
+    let light = b.emitter("lamp", Vec3::splat(80.0));
+    let mut room = cuboid(vec3(-2.5, 0.0, -2.5), vec3(2.5, 3.0, 2.5), true);
+    let floor_tris: Vec<[Vec3; 3]> = room.drain(4..6).collect();
+    b.triangles("room", wall, &room);
+    b.triangles("floor", floor, &floor_tris);
+    // Box [-0.5, 0.5] × [0, 1] × [-0.5, 0.5]; one 6 cm hole near the top of each side.
+    let (lo, hi) = (vec3(-0.5, 0.0, -0.5), vec3(0.5, 1.0, 0.5));
+    let hole = [[0.47, 0.82, 0.53, 0.88]];
+    let mut shell = Vec::new();
+    shell.extend(rect_with_holes(
+        vec3(lo.x, lo.y, lo.z),
+        Vec3::X,
+        Vec3::Y,
+        1.0,
+        1.0,
+        &hole,
+    ));
+    shell.extend(rect_with_holes(
+        vec3(lo.x, lo.y, hi.z),
+        Vec3::X,
+        Vec3::Y,
+        1.0,
+        1.0,
+        &hole,
+    ));
+    shell.extend(rect_with_holes(
+        vec3(lo.x, lo.y, lo.z),
+        Vec3::Z,
+        Vec3::Y,
+        1.0,
+        1.0,
+        &hole,
+    ));
+    shell.extend(rect_with_holes(
+        vec3(hi.x, lo.y, lo.z),
+        Vec3::Z,
+        Vec3::Y,
+        1.0,
+        1.0,
+        &hole,
+    ));
+    shell.extend(rect_with_holes(
+        vec3(lo.x, hi.y, lo.z),
+        Vec3::X,
+        Vec3::Z,
+        1.0,
+        1.0,
+        &[],
+    ));
+    shell.extend(rect_with_holes(
+        vec3(lo.x, 0.001, lo.z),
+        Vec3::X,
+        Vec3::Z,
+        1.0,
+        1.0,
+        &[],
+    ));
+    b.triangles("box", boxm, &shell);
+    // Lamp under the lid, facing down into the box.
+    let y = 0.98;
+    b.triangles(
+        "lamp",
+        light,
+        &quad(
+            vec3(-0.2, y, -0.2),
+            vec3(0.2, y, -0.2),
+            vec3(0.2, y, 0.2),
+            vec3(-0.2, y, 0.2),
+        ),
+    );
+    b.camera(vec3(1.6, 2.2, 2.3), vec3(-0.3, 0.5, -0.5), 60.0, 256, 192);
+    b.finish()
+}

@@ -1,0 +1,1 @@
+//! `camera.json` beside a scene file (stub, replaced by the full reader).
