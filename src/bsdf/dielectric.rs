@@ -6,11 +6,7 @@ use glam::Vec3;
 
 /// Unpolarised Fresnel reflectance for a dielectric; `cos_i` signed w.r.t. +z (outside).
 pub fn fresnel(cos_i: f32, eta: f32) -> f32 {
-    let (cos_i, eta) = if cos_i < 0.0 {
-        (-cos_i, 1.0 / eta)
-    } else {
-        (cos_i, eta)
-    };
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
     let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
     if sin2_t >= 1.0 {
         return 1.0;
@@ -24,11 +20,7 @@ pub fn fresnel(cos_i: f32, eta: f32) -> f32 {
 /// The refracted direction of `wo` (pointing away from the surface), and the relative index
 /// `eta_t / eta_i` along the way; `None` on total internal reflection.
 pub fn refract(wo: Vec3, eta: f32) -> Option<(Vec3, f32)> {
-    let (n, eta_rel, cos_i) = if wo.z >= 0.0 {
-        (Vec3::Z, eta, wo.z)
-    } else {
-        (-Vec3::Z, 1.0 / eta, -wo.z)
-    };
+    let (n, eta_rel, cos_i) = if wo.z >= 0.0 { (Vec3::Z, eta, wo.z) } else { (-Vec3::Z, 1.0 / eta, -wo.z) };
     let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
     let sin2_t = sin2_i / (eta_rel * eta_rel);
     if sin2_t >= 1.0 {
@@ -50,13 +42,7 @@ mod tests {
         assert!((fresnel(-1.0, 1.5) - r0).abs() < 1e-5);
         // Inside glass at grazing incidence: total internal reflection.
         assert_eq!(fresnel(-0.1, 1.5), 1.0);
-        assert!(
-            refract(
-                Vec3::new((1.0f32 - 0.01).sqrt(), 0.0, -0.1).normalize(),
-                1.5
-            )
-            .is_none()
-        );
+        assert!(refract(Vec3::new((1.0f32 - 0.01).sqrt(), 0.0, -0.1).normalize(), 1.5).is_none());
     }
 
     #[test]

@@ -17,10 +17,7 @@ impl Frame {
     /// A frame around the unit normal `n` (Duff et al. 2017, branchless ONB).
     #[inline]
     pub fn from_normal(n: Vec3) -> Self {
-        debug_assert!(
-            (n.length_squared() - 1.0).abs() < 1e-3,
-            "normal not unit: {n}"
-        );
+        debug_assert!((n.length_squared() - 1.0).abs() < 1e-3, "normal not unit: {n}");
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let b = n.x * n.y * a;
@@ -48,17 +45,9 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal_and_round_trips() {
-        for n in [
-            Vec3::Z,
-            -Vec3::Z,
-            Vec3::X,
-            Vec3::new(0.3, -0.5, 0.8).normalize(),
-            Vec3::new(0.0, 0.0, -1.0),
-        ] {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize(), Vec3::new(0.0, 0.0, -1.0)] {
             let f = Frame::from_normal(n);
-            assert!(
-                f.s.dot(f.t).abs() < 1e-5 && f.s.dot(f.n).abs() < 1e-5 && f.t.dot(f.n).abs() < 1e-5
-            );
+            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(f.n).abs() < 1e-5 && f.t.dot(f.n).abs() < 1e-5);
             assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);
             let v = Vec3::new(0.2, 0.7, -0.1);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);

@@ -9,11 +9,7 @@ use crate::sampling::warp::{cosine_hemisphere_pdf_w, sample_cosine_hemisphere};
 /// f(wo, wi) in the local frame (wo on +z). Reflection only.
 #[inline]
 pub fn eval(albedo: Vec3, wo: Vec3, wi: Vec3) -> Vec3 {
-    if wo.z * wi.z <= 0.0 {
-        Vec3::ZERO
-    } else {
-        albedo * FRAC_1_PI
-    }
+    if wo.z * wi.z <= 0.0 { Vec3::ZERO } else { albedo * FRAC_1_PI }
 }
 
 /// Cosine-weighted sample on the side of `wo`.
@@ -26,9 +22,5 @@ pub fn sample(wo: Vec3, u: Vec2) -> Vec3 {
 /// Solid-angle density of [`sample`].
 #[inline]
 pub fn pdf_w(wo: Vec3, wi: Vec3) -> f32 {
-    if wo.z * wi.z <= 0.0 {
-        0.0
-    } else {
-        cosine_hemisphere_pdf_w(wi.z.abs())
-    }
+    if wo.z * wi.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf_w(wi.z.abs()) }
 }

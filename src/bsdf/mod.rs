@@ -100,20 +100,13 @@ impl Bsdf {
                 (ns, ng)
             }
         };
-        Bsdf {
-            kind,
-            frame: Frame::from_normal(ns),
-            ng,
-        }
+        Bsdf { kind, frame: Frame::from_normal(ns), ng }
     }
 
     /// True when the BSDF is a pure delta distribution (mirror, dielectric).
     #[inline]
     pub fn is_delta(&self) -> bool {
-        matches!(
-            self.kind,
-            BsdfKind::Mirror { .. } | BsdfKind::Dielectric { .. }
-        )
+        matches!(self.kind, BsdfKind::Mirror { .. } | BsdfKind::Dielectric { .. })
     }
 
     /// The diffuse albedo (for AOVs and the discontinuity buffer); white-ish for specular.
@@ -155,13 +148,7 @@ impl Bsdf {
     }
 
     /// Samples wi given wo with two uniform numbers for the direction and one for the lobe.
-    pub fn sample(
-        &self,
-        wo: Vec3,
-        u_lobe: f32,
-        u: Vec2,
-        mode: TransportMode,
-    ) -> Option<BsdfSample> {
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         let lo = self.frame.to_local(wo);
         if lo.z == 0.0 {
             return None;
@@ -169,21 +156,11 @@ impl Bsdf {
         let (li, f, pdf_w, delta) = match self.kind {
             BsdfKind::Lambert { albedo } => {
                 let li = lambert::sample(lo, u);
-                (
-                    li,
-                    lambert::eval(albedo, lo, li),
-                    lambert::pdf_w(lo, li),
-                    false,
-                )
+                (li, lambert::eval(albedo, lo, li), lambert::pdf_w(lo, li), false)
             }
             BsdfKind::Phong { kd, ks, exponent } => {
                 let li = phong::sample(kd, ks, exponent, lo, u_lobe, u)?;
-                (
-                    li,
-                    phong::eval(kd, ks, exponent, lo, li),
-                    phong::pdf_w(kd, ks, exponent, lo, li),
-                    false,
-                )
+                (li, phong::eval(kd, ks, exponent, lo, li), phong::pdf_w(kd, ks, exponent, lo, li), false)
             }
             BsdfKind::Mirror { reflectance } => {
                 let li = mirror::reflect(lo);
@@ -215,12 +192,7 @@ impl Bsdf {
         if same_side_shading != same_side_geometric {
             return None;
         }
-        Some(BsdfSample {
-            wi,
-            f,
-            pdf_w,
-            delta,
-        })
+        Some(BsdfSample { wi, f, pdf_w, delta })
     }
 
     /// |cos| between `w` and the shading normal.
@@ -238,19 +210,9 @@ mod tests {
 
     fn bsdfs() -> Vec<BsdfKind> {
         vec![
-            BsdfKind::Lambert {
-                albedo: Vec3::new(0.8, 0.5, 0.2),
-            },
-            BsdfKind::Phong {
-                kd: Vec3::splat(0.3),
-                ks: Vec3::splat(0.6),
-                exponent: 30.0,
-            },
-            BsdfKind::Phong {
-                kd: Vec3::splat(0.0),
-                ks: Vec3::splat(0.9),
-                exponent: 1.0,
-            },
+            BsdfKind::Lambert { albedo: Vec3::new(0.8, 0.5, 0.2) },
+            BsdfKind::Phong { kd: Vec3::splat(0.3), ks: Vec3::splat(0.6), exponent: 30.0 },
+            BsdfKind::Phong { kd: Vec3::splat(0.0), ks: Vec3::splat(0.9), exponent: 1.0 },
         ]
     }
 
@@ -266,20 +228,13 @@ mod tests {
             let count = 200_000;
             let mut sum = Vec3::ZERO;
             for _ in 0..count {
-                let Some(s) = b.sample(
-                    wo,
-                    r.next_f32(),
-                    vec2(r.next_f32(), r.next_f32()),
-                    TransportMode::Radiance,
-                ) else {
+                let Some(s) = b.sample(wo, r.next_f32(), vec2(r.next_f32(), r.next_f32()), TransportMode::Radiance)
+                else {
                     continue;
                 };
                 let f = b.f(wo, s.wi);
                 let p = b.pdf_w(wo, s.wi);
-                assert!(
-                    (f - s.f).abs().max_element() < 1e-3 * f.max_element().max(1.0),
-                    "{kind:?}"
-                );
+                assert!((f - s.f).abs().max_element() < 1e-3 * f.max_element().max(1.0), "{kind:?}");
                 assert!((p - s.pdf_w).abs() < 1e-3 * p.max(1.0), "{kind:?}");
                 sum += s.f * b.abs_cos(s.wi) / s.pdf_w;
             }
@@ -304,23 +259,13 @@ mod tests {
     fn lambert_cosine_sampling_weight_is_the_albedo() {
         let rho = Vec3::new(0.7, 0.4, 0.1);
         let b = Bsdf::new(BsdfKind::Lambert { albedo: rho }, Vec3::Y, Vec3::Y, Vec3::Y);
-        let s = b
-            .sample(Vec3::Y, 0.5, vec2(0.3, 0.8), TransportMode::Radiance)
-            .unwrap();
+        let s = b.sample(Vec3::Y, 0.5, vec2(0.3, 0.8), TransportMode::Radiance).unwrap();
         assert!((s.f * b.abs_cos(s.wi) / s.pdf_w - rho).abs().max_element() < 1e-5);
     }
 
     #[test]
     fn dielectric_conserves_energy_in_importance_mode() {
-        let b = Bsdf::new(
-            BsdfKind::Dielectric {
-                eta: 1.5,
-                tint: Vec3::ONE,
-            },
-            Vec3::Z,
-            Vec3::Z,
-            Vec3::Z,
-        );
+        let b = Bsdf::new(BsdfKind::Dielectric { eta: 1.5, tint: Vec3::ONE }, Vec3::Z, Vec3::Z, Vec3::Z);
         let wo = Vec3::new(0.5, 0.0, 0.8).normalize();
         let mut r = Pcg32::new(2);
         let mut sum = 0.0;

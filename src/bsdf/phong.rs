@@ -8,9 +8,7 @@ use glam::{Vec2, Vec3};
 
 use super::frame::Frame;
 use super::luminance;
-use crate::sampling::warp::{
-    cosine_hemisphere_pdf_w, phong_lobe_pdf_w, sample_cosine_hemisphere, sample_phong_lobe,
-};
+use crate::sampling::warp::{cosine_hemisphere_pdf_w, phong_lobe_pdf_w, sample_cosine_hemisphere, sample_phong_lobe};
 
 /// Mirror direction of `wo` about +z.
 #[inline]

@@ -11,15 +11,8 @@ use glam::{Mat3, Vec3, vec3};
 use super::desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, ScatterDesc, SceneDesc};
 
 /// Names of the built-in scenes, in the order of scenes/README.md.
-pub const NAMES: [&str; 7] = [
-    "cornell",
-    "furnace",
-    "ajar-door",
-    "left-right",
-    "direct-indirect",
-    "light-box",
-    "glass-sphere",
-];
+pub const NAMES: [&str; 7] =
+    ["cornell", "furnace", "ajar-door", "left-right", "direct-indirect", "light-box", "glass-sphere"];
 
 /// The built-in scene called `name`, if there is one.
 pub fn by_name(name: &str) -> Option<SceneDesc> {
@@ -44,10 +37,7 @@ pub struct Builder {
 impl Builder {
     /// An empty scene called `name`.
     pub fn new(name: &str) -> Self {
-        Builder {
-            desc: SceneDesc::default(),
-            name: name.to_string(),
-        }
+        Builder { desc: SceneDesc::default(), name: name.to_string() }
     }
 
     /// Adds a material and returns its index.
@@ -128,14 +118,7 @@ pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [[Vec3; 3]; 2] {
 /// An axis-aligned rectangle at `origin` spanned by `u * width` and `v * height`, facing
 /// `u × v`, with rectangular holes given as (u0, v0, u1, v1) in the rectangle's units. The
 /// rectangle is cut into a grid along the hole edges so that the triangles stay well shaped.
-pub fn rect_with_holes(
-    origin: Vec3,
-    u: Vec3,
-    v: Vec3,
-    width: f32,
-    height: f32,
-    holes: &[[f32; 4]],
-) -> Vec<[Vec3; 3]> {
+pub fn rect_with_holes(origin: Vec3, u: Vec3, v: Vec3, width: f32, height: f32, holes: &[[f32; 4]]) -> Vec<[Vec3; 3]> {
     let mut us = vec![0.0, width];
     let mut vs = vec![0.0, height];
     for h in holes {
@@ -150,19 +133,11 @@ pub fn rect_with_holes(
     for i in 0..us.len() - 1 {
         for j in 0..vs.len() - 1 {
             let (cu, cv) = (0.5 * (us[i] + us[i + 1]), 0.5 * (vs[j] + vs[j + 1]));
-            if holes
-                .iter()
-                .any(|h| cu > h[0] && cu < h[2] && cv > h[1] && cv < h[3])
-            {
+            if holes.iter().any(|h| cu > h[0] && cu < h[2] && cv > h[1] && cv < h[3]) {
                 continue;
             }
             let p = |a: f32, b: f32| origin + u * a + v * b;
-            tris.extend(quad(
-                p(us[i], vs[j]),
-                p(us[i + 1], vs[j]),
-                p(us[i + 1], vs[j + 1]),
-                p(us[i], vs[j + 1]),
-            ));
+            tris.extend(quad(p(us[i], vs[j]), p(us[i + 1], vs[j]), p(us[i + 1], vs[j + 1]), p(us[i], vs[j + 1])));
         }
     }
     tris
@@ -171,49 +146,15 @@ pub fn rect_with_holes(
 /// The six faces of the box [lo, hi], facing outwards (`inward = false`) or inwards.
 pub fn cuboid(lo: Vec3, hi: Vec3, inward: bool) -> Vec<[Vec3; 3]> {
     let c = |x: bool, y: bool, z: bool| {
-        vec3(
-            if x { hi.x } else { lo.x },
-            if y { hi.y } else { lo.y },
-            if z { hi.z } else { lo.z },
-        )
+        vec3(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
     };
     let faces = [
-        quad(
-            c(false, false, false),
-            c(false, false, true),
-            c(false, true, true),
-            c(false, true, false),
-        ), // -x
-        quad(
-            c(true, false, false),
-            c(true, true, false),
-            c(true, true, true),
-            c(true, false, true),
-        ), // +x
-        quad(
-            c(false, false, false),
-            c(true, false, false),
-            c(true, false, true),
-            c(false, false, true),
-        ), // -y
-        quad(
-            c(false, true, false),
-            c(false, true, true),
-            c(true, true, true),
-            c(true, true, false),
-        ), // +y
-        quad(
-            c(false, false, false),
-            c(false, true, false),
-            c(true, true, false),
-            c(true, false, false),
-        ), // -z
-        quad(
-            c(false, false, true),
-            c(true, false, true),
-            c(true, true, true),
-            c(false, true, true),
-        ), // +z
+        quad(c(false, false, false), c(false, false, true), c(false, true, true), c(false, true, false)), // -x
+        quad(c(true, false, false), c(true, true, false), c(true, true, true), c(true, false, true)),     // +x
+        quad(c(false, false, false), c(true, false, false), c(true, false, true), c(false, false, true)), // -y
+        quad(c(false, true, false), c(false, true, true), c(true, true, true), c(true, true, false)),     // +y
+        quad(c(false, false, false), c(false, true, false), c(true, true, false), c(true, false, false)), // -z
+        quad(c(false, false, true), c(true, false, true), c(true, true, true), c(false, true, true)),     // +z
     ];
     let mut tris: Vec<[Vec3; 3]> = faces.iter().flatten().copied().collect();
     if inward {
@@ -315,46 +256,16 @@ fn cornell_shell(b: &mut Builder, with_short_block: bool) {
     let green = b.diffuse("green", GREEN);
     let light = b.emitter("light", CORNELL_LE);
     // Walls face the inside of the box.
-    let floor = quad(
-        p(552.8, 0.0, 0.0),
-        p(0.0, 0.0, 0.0),
-        p(0.0, 0.0, 559.2),
-        p(549.6, 0.0, 559.2),
-    );
-    let ceiling = quad(
-        p(556.0, 548.8, 0.0),
-        p(556.0, 548.8, 559.2),
-        p(0.0, 548.8, 559.2),
-        p(0.0, 548.8, 0.0),
-    );
-    let back = quad(
-        p(549.6, 0.0, 559.2),
-        p(0.0, 0.0, 559.2),
-        p(0.0, 548.8, 559.2),
-        p(556.0, 548.8, 559.2),
-    );
-    let green_wall = quad(
-        p(0.0, 0.0, 559.2),
-        p(0.0, 0.0, 0.0),
-        p(0.0, 548.8, 0.0),
-        p(0.0, 548.8, 559.2),
-    );
-    let red_wall = quad(
-        p(552.8, 0.0, 0.0),
-        p(549.6, 0.0, 559.2),
-        p(556.0, 548.8, 559.2),
-        p(556.0, 548.8, 0.0),
-    );
+    let floor = quad(p(552.8, 0.0, 0.0), p(0.0, 0.0, 0.0), p(0.0, 0.0, 559.2), p(549.6, 0.0, 559.2));
+    let ceiling = quad(p(556.0, 548.8, 0.0), p(556.0, 548.8, 559.2), p(0.0, 548.8, 559.2), p(0.0, 548.8, 0.0));
+    let back = quad(p(549.6, 0.0, 559.2), p(0.0, 0.0, 559.2), p(0.0, 548.8, 559.2), p(556.0, 548.8, 559.2));
+    let green_wall = quad(p(0.0, 0.0, 559.2), p(0.0, 0.0, 0.0), p(0.0, 548.8, 0.0), p(0.0, 548.8, 559.2));
+    let red_wall = quad(p(552.8, 0.0, 0.0), p(549.6, 0.0, 559.2), p(556.0, 548.8, 559.2), p(556.0, 548.8, 0.0));
     let mut whites: Vec<[Vec3; 3]> = [floor, ceiling, back].iter().flatten().copied().collect();
     b.triangles("red wall", red, &red_wall);
     b.triangles("green wall", green, &green_wall);
     // The light sits just below the ceiling and faces down.
-    let lamp = quad(
-        p(343.0, 548.7, 227.0),
-        p(343.0, 548.7, 332.0),
-        p(213.0, 548.7, 332.0),
-        p(213.0, 548.7, 227.0),
-    );
+    let lamp = quad(p(343.0, 548.7, 227.0), p(343.0, 548.7, 332.0), p(213.0, 548.7, 332.0), p(213.0, 548.7, 227.0));
     b.triangles("light", light, &lamp);
     let block = |top: [(f32, f32); 4], h: f32| -> Vec<[Vec3; 3]> {
         let mut t = Vec::new();
@@ -367,29 +278,12 @@ fn cornell_shell(b: &mut Builder, with_short_block: bool) {
         t
     };
     if with_short_block {
-        whites.extend(block(
-            [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)],
-            165.0,
-        ));
+        whites.extend(block([(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0)], 165.0));
     }
-    whites.extend(block(
-        [
-            (423.0, 247.0),
-            (265.0, 296.0),
-            (314.0, 456.0),
-            (472.0, 406.0),
-        ],
-        330.0,
-    ));
+    whites.extend(block([(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0)], 330.0));
     b.triangles("white walls and blocks", white, &whites);
     // The classic camera: 35 mm lens on a 25 mm film, 8 m in front of the box.
-    b.camera(
-        p(278.0, 273.0, -800.0),
-        p(278.0, 273.0, 0.0),
-        39.3077,
-        256,
-        256,
-    );
+    b.camera(p(278.0, 273.0, -800.0), p(278.0, 273.0, 0.0), 39.3077, 256, 256);
 }
 
 /// The Cornell box (classic dimensions and albedos), the default scene.
@@ -454,74 +348,24 @@ pub fn ajar_door() -> SceneDesc {
     let mut walls = Vec::new();
     let mut floors = Vec::new();
     for (x0, x1) in [(0.0f32, 4.0f32), (4.0, 7.0)] {
-        floors.extend(quad(
-            vec3(x0, 0.0, 0.0),
-            vec3(x0, 0.0, 4.0),
-            vec3(x1, 0.0, 4.0),
-            vec3(x1, 0.0, 0.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, h, 0.0),
-            vec3(x1, h, 0.0),
-            vec3(x1, h, 4.0),
-            vec3(x0, h, 4.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, 0.0, 0.0),
-            vec3(x1, 0.0, 0.0),
-            vec3(x1, h, 0.0),
-            vec3(x0, h, 0.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, 0.0, 4.0),
-            vec3(x0, h, 4.0),
-            vec3(x1, h, 4.0),
-            vec3(x1, 0.0, 4.0),
-        ));
+        floors.extend(quad(vec3(x0, 0.0, 0.0), vec3(x0, 0.0, 4.0), vec3(x1, 0.0, 4.0), vec3(x1, 0.0, 0.0)));
+        walls.extend(quad(vec3(x0, h, 0.0), vec3(x1, h, 0.0), vec3(x1, h, 4.0), vec3(x0, h, 4.0)));
+        walls.extend(quad(vec3(x0, 0.0, 0.0), vec3(x1, 0.0, 0.0), vec3(x1, h, 0.0), vec3(x0, h, 0.0)));
+        walls.extend(quad(vec3(x0, 0.0, 4.0), vec3(x0, h, 4.0), vec3(x1, h, 4.0), vec3(x1, 0.0, 4.0)));
     }
-    walls.extend(quad(
-        vec3(0.0, 0.0, 0.0),
-        vec3(0.0, h, 0.0),
-        vec3(0.0, h, 4.0),
-        vec3(0.0, 0.0, 4.0),
-    ));
-    walls.extend(quad(
-        vec3(7.0, 0.0, 0.0),
-        vec3(7.0, 0.0, 4.0),
-        vec3(7.0, h, 4.0),
-        vec3(7.0, h, 0.0),
-    ));
+    walls.extend(quad(vec3(0.0, 0.0, 0.0), vec3(0.0, h, 0.0), vec3(0.0, h, 4.0), vec3(0.0, 0.0, 4.0)));
+    walls.extend(quad(vec3(7.0, 0.0, 0.0), vec3(7.0, 0.0, 4.0), vec3(7.0, h, 4.0), vec3(7.0, h, 0.0)));
     // The dividing wall at x = 4 with the doorway z in [1.5, 2.5], y in [0, 2].
-    walls.extend(rect_with_holes(
-        vec3(4.0, 0.0, 0.0),
-        Vec3::Z,
-        Vec3::Y,
-        4.0,
-        h,
-        &[[dz0, 0.0, dz1, dh]],
-    ));
+    walls.extend(rect_with_holes(vec3(4.0, 0.0, 0.0), Vec3::Z, Vec3::Y, 4.0, h, &[[dz0, 0.0, dz1, dh]]));
     b.triangles("walls", wall, &walls);
     b.triangles("floors", floor, &floors);
     // The door: a 4 cm slab hinged at z = 1.5, swung 6° into room B.
-    let mut slab = cuboid(
-        vec3(4.0, 0.0, dz0),
-        vec3(4.04, dh - 0.01, dz1 - 0.01),
-        false,
-    );
+    let mut slab = cuboid(vec3(4.0, 0.0, dz0), vec3(4.04, dh - 0.01, dz1 - 0.01), false);
     rotate_y(&mut slab, vec3(4.0, 0.0, dz0), -6.0 * PI / 180.0);
     b.triangles("door", door, &slab);
     // Ceiling light in room B, facing down, away from the door.
     let y = h - 0.01;
-    b.triangles(
-        "light",
-        light,
-        &quad(
-            vec3(5.8, y, 0.6),
-            vec3(6.6, y, 0.6),
-            vec3(6.6, y, 1.4),
-            vec3(5.8, y, 1.4),
-        ),
-    );
+    b.triangles("light", light, &quad(vec3(5.8, y, 0.6), vec3(6.6, y, 0.6), vec3(6.6, y, 1.4), vec3(5.8, y, 1.4)));
     b.camera(vec3(0.6, 1.5, 3.5), vec3(4.0, 0.9, 1.8), 60.0, 256, 192);
     b.finish()
 }
@@ -538,80 +382,21 @@ pub fn left_right() -> SceneDesc {
     let mut walls = Vec::new();
     let mut floors = Vec::new();
     // Corridor x in [-1, 1], z in [0, 8].
-    floors.extend(quad(
-        vec3(-1.0, 0.0, 0.0),
-        vec3(-1.0, 0.0, 8.0),
-        vec3(1.0, 0.0, 8.0),
-        vec3(1.0, 0.0, 0.0),
-    ));
-    walls.extend(quad(
-        vec3(-1.0, h, 0.0),
-        vec3(1.0, h, 0.0),
-        vec3(1.0, h, 8.0),
-        vec3(-1.0, h, 8.0),
-    ));
-    walls.extend(quad(
-        vec3(-1.0, 0.0, 0.0),
-        vec3(1.0, 0.0, 0.0),
-        vec3(1.0, h, 0.0),
-        vec3(-1.0, h, 0.0),
-    ));
-    walls.extend(quad(
-        vec3(-1.0, 0.0, 8.0),
-        vec3(-1.0, h, 8.0),
-        vec3(1.0, h, 8.0),
-        vec3(1.0, 0.0, 8.0),
-    ));
+    floors.extend(quad(vec3(-1.0, 0.0, 0.0), vec3(-1.0, 0.0, 8.0), vec3(1.0, 0.0, 8.0), vec3(1.0, 0.0, 0.0)));
+    walls.extend(quad(vec3(-1.0, h, 0.0), vec3(1.0, h, 0.0), vec3(1.0, h, 8.0), vec3(-1.0, h, 8.0)));
+    walls.extend(quad(vec3(-1.0, 0.0, 0.0), vec3(1.0, 0.0, 0.0), vec3(1.0, h, 0.0), vec3(-1.0, h, 0.0)));
+    walls.extend(quad(vec3(-1.0, 0.0, 8.0), vec3(-1.0, h, 8.0), vec3(1.0, h, 8.0), vec3(1.0, 0.0, 8.0)));
     let doorway = [[4.0, 0.0, 5.0, 2.0]];
-    walls.extend(rect_with_holes(
-        vec3(-1.0, 0.0, 0.0),
-        Vec3::Z,
-        Vec3::Y,
-        8.0,
-        h,
-        &doorway,
-    ));
-    walls.extend(rect_with_holes(
-        vec3(1.0, 0.0, 0.0),
-        Vec3::Z,
-        Vec3::Y,
-        8.0,
-        h,
-        &doorway,
-    ));
+    walls.extend(rect_with_holes(vec3(-1.0, 0.0, 0.0), Vec3::Z, Vec3::Y, 8.0, h, &doorway));
+    walls.extend(rect_with_holes(vec3(1.0, 0.0, 0.0), Vec3::Z, Vec3::Y, 8.0, h, &doorway));
     // Side rooms: z in [3, 6], x in [-4, -1] and [1, 4]: floor, ceiling, three walls each.
     for (x0, x1) in [(-4.0f32, -1.0f32), (1.0, 4.0)] {
-        floors.extend(quad(
-            vec3(x0, 0.0, 3.0),
-            vec3(x0, 0.0, 6.0),
-            vec3(x1, 0.0, 6.0),
-            vec3(x1, 0.0, 3.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, h, 3.0),
-            vec3(x1, h, 3.0),
-            vec3(x1, h, 6.0),
-            vec3(x0, h, 6.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, 0.0, 3.0),
-            vec3(x1, 0.0, 3.0),
-            vec3(x1, h, 3.0),
-            vec3(x0, h, 3.0),
-        ));
-        walls.extend(quad(
-            vec3(x0, 0.0, 6.0),
-            vec3(x0, h, 6.0),
-            vec3(x1, h, 6.0),
-            vec3(x1, 0.0, 6.0),
-        ));
+        floors.extend(quad(vec3(x0, 0.0, 3.0), vec3(x0, 0.0, 6.0), vec3(x1, 0.0, 6.0), vec3(x1, 0.0, 3.0)));
+        walls.extend(quad(vec3(x0, h, 3.0), vec3(x1, h, 3.0), vec3(x1, h, 6.0), vec3(x0, h, 6.0)));
+        walls.extend(quad(vec3(x0, 0.0, 3.0), vec3(x1, 0.0, 3.0), vec3(x1, h, 3.0), vec3(x0, h, 3.0)));
+        walls.extend(quad(vec3(x0, 0.0, 6.0), vec3(x0, h, 6.0), vec3(x1, h, 6.0), vec3(x1, 0.0, 6.0)));
         let xo = if x0 < 0.0 { x0 } else { x1 };
-        walls.extend(quad(
-            vec3(xo, 0.0, 3.0),
-            vec3(xo, h, 3.0),
-            vec3(xo, h, 6.0),
-            vec3(xo, 0.0, 6.0),
-        ));
+        walls.extend(quad(vec3(xo, 0.0, 3.0), vec3(xo, h, 3.0), vec3(xo, h, 6.0), vec3(xo, 0.0, 6.0)));
     }
     b.triangles("walls", wall, &walls);
     b.triangles("floors", floor, &floors);
@@ -619,22 +404,12 @@ pub fn left_right() -> SceneDesc {
     b.triangles(
         "left light",
         left_light,
-        &quad(
-            vec3(-3.6, y, 4.1),
-            vec3(-2.8, y, 4.1),
-            vec3(-2.8, y, 4.9),
-            vec3(-3.6, y, 4.9),
-        ),
+        &quad(vec3(-3.6, y, 4.1), vec3(-2.8, y, 4.1), vec3(-2.8, y, 4.9), vec3(-3.6, y, 4.9)),
     );
     b.triangles(
         "right light",
         right_light,
-        &quad(
-            vec3(2.8, y, 4.1),
-            vec3(3.6, y, 4.1),
-            vec3(3.6, y, 4.9),
-            vec3(2.8, y, 4.9),
-        ),
+        &quad(vec3(2.8, y, 4.1), vec3(3.6, y, 4.1), vec3(3.6, y, 4.9), vec3(2.8, y, 4.9)),
     );
     b.camera(vec3(0.0, 1.5, 0.4), vec3(0.0, 0.9, 6.0), 55.0, 256, 192);
     b.finish()
@@ -669,46 +444,11 @@ pub fn direct_indirect() -> SceneDesc {
     );
     let mut tube = Vec::new();
     // Bottom of the tube with a small slot near the lamp; top, sides and closed back.
-    tube.extend(rect_with_holes(
-        vec3(x0, y0, z0),
-        Vec3::X,
-        Vec3::Z,
-        x1 - x0,
-        z1 - z0,
-        &[[0.25, 0.2, 0.35, 0.28]],
-    ));
-    tube.extend(rect_with_holes(
-        vec3(x0, y1, z0),
-        Vec3::X,
-        Vec3::Z,
-        x1 - x0,
-        z1 - z0,
-        &[],
-    ));
-    tube.extend(rect_with_holes(
-        vec3(x0, y0, z0),
-        Vec3::Z,
-        Vec3::Y,
-        z1 - z0,
-        y1 - y0,
-        &[],
-    ));
-    tube.extend(rect_with_holes(
-        vec3(x1, y0, z0),
-        Vec3::Z,
-        Vec3::Y,
-        z1 - z0,
-        y1 - y0,
-        &[],
-    ));
-    tube.extend(rect_with_holes(
-        vec3(x0, y0, z0),
-        Vec3::X,
-        Vec3::Y,
-        x1 - x0,
-        y1 - y0,
-        &[],
-    ));
+    tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::X, Vec3::Z, x1 - x0, z1 - z0, &[[0.25, 0.2, 0.35, 0.28]]));
+    tube.extend(rect_with_holes(vec3(x0, y1, z0), Vec3::X, Vec3::Z, x1 - x0, z1 - z0, &[]));
+    tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::Z, Vec3::Y, z1 - z0, y1 - y0, &[]));
+    tube.extend(rect_with_holes(vec3(x1, y0, z0), Vec3::Z, Vec3::Y, z1 - z0, y1 - y0, &[]));
+    tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::X, Vec3::Y, x1 - x0, y1 - y0, &[]));
     b.triangles("shade", shade, &tube);
     b.camera(vec3(0.0, 1.6, 2.0), vec3(0.0, 0.8, -3.0), 55.0, 256, 192);
     b.finish()
@@ -730,67 +470,16 @@ pub fn light_box() -> SceneDesc {
     let (lo, hi) = (vec3(-0.5, 0.0, -0.5), vec3(0.5, 1.0, 0.5));
     let hole = [[0.47, 0.82, 0.53, 0.88]];
     let mut shell = Vec::new();
-    shell.extend(rect_with_holes(
-        vec3(lo.x, lo.y, lo.z),
-        Vec3::X,
-        Vec3::Y,
-        1.0,
-        1.0,
-        &hole,
-    ));
-    shell.extend(rect_with_holes(
-        vec3(lo.x, lo.y, hi.z),
-        Vec3::X,
-        Vec3::Y,
-        1.0,
-        1.0,
-        &hole,
-    ));
-    shell.extend(rect_with_holes(
-        vec3(lo.x, lo.y, lo.z),
-        Vec3::Z,
-        Vec3::Y,
-        1.0,
-        1.0,
-        &hole,
-    ));
-    shell.extend(rect_with_holes(
-        vec3(hi.x, lo.y, lo.z),
-        Vec3::Z,
-        Vec3::Y,
-        1.0,
-        1.0,
-        &hole,
-    ));
-    shell.extend(rect_with_holes(
-        vec3(lo.x, hi.y, lo.z),
-        Vec3::X,
-        Vec3::Z,
-        1.0,
-        1.0,
-        &[],
-    ));
-    shell.extend(rect_with_holes(
-        vec3(lo.x, 0.001, lo.z),
-        Vec3::X,
-        Vec3::Z,
-        1.0,
-        1.0,
-        &[],
-    ));
+    shell.extend(rect_with_holes(vec3(lo.x, lo.y, lo.z), Vec3::X, Vec3::Y, 1.0, 1.0, &hole));
+    shell.extend(rect_with_holes(vec3(lo.x, lo.y, hi.z), Vec3::X, Vec3::Y, 1.0, 1.0, &hole));
+    shell.extend(rect_with_holes(vec3(lo.x, lo.y, lo.z), Vec3::Z, Vec3::Y, 1.0, 1.0, &hole));
+    shell.extend(rect_with_holes(vec3(hi.x, lo.y, lo.z), Vec3::Z, Vec3::Y, 1.0, 1.0, &hole));
+    shell.extend(rect_with_holes(vec3(lo.x, hi.y, lo.z), Vec3::X, Vec3::Z, 1.0, 1.0, &[]));
+    shell.extend(rect_with_holes(vec3(lo.x, 0.001, lo.z), Vec3::X, Vec3::Z, 1.0, 1.0, &[]));
     b.triangles("box", boxm, &shell);
     // Lamp under the lid, facing down into the box.
     let y = 0.98;
-    b.triangles(
-        "lamp",
-        light,
-        &quad(
-            vec3(-0.2, y, -0.2),
-            vec3(0.2, y, -0.2),
-            vec3(0.2, y, 0.2),
-            vec3(-0.2, y, 0.2),
-        ),
-    );
+    b.triangles("lamp", light, &quad(vec3(-0.2, y, -0.2), vec3(0.2, y, -0.2), vec3(0.2, y, 0.2), vec3(-0.2, y, 0.2)));
     b.camera(vec3(1.6, 2.2, 2.3), vec3(-0.3, 0.5, -0.5), 60.0, 256, 192);
     b.finish()
 }

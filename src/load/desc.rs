@@ -33,11 +33,7 @@ pub enum Origin {
 impl std::fmt::Display for Origin {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Origin::Gltf {
-                node,
-                mesh,
-                primitive,
-            } => write!(f, "node {node}, mesh {mesh}, primitive {primitive}"),
+            Origin::Gltf { node, mesh, primitive } => write!(f, "node {node}, mesh {mesh}, primitive {primitive}"),
             Origin::Obj { name, line } if *line > 0 => write!(f, "object '{name}' (line {line})"),
             Origin::Obj { name, .. } => write!(f, "object '{name}'"),
             Origin::Builtin(what) => write!(f, "built-in {what}"),
@@ -203,18 +199,11 @@ impl SceneDesc {
         for l in &mut self.lights {
             match l {
                 // Intensity scales with s² so that irradiance at scaled distances is unchanged.
-                PunctualDesc::Point {
-                    position,
-                    intensity,
-                } => {
+                PunctualDesc::Point { position, intensity } => {
                     *position *= s;
                     *intensity *= s * s;
                 }
-                PunctualDesc::Spot {
-                    position,
-                    intensity,
-                    ..
-                } => {
+                PunctualDesc::Spot { position, intensity, .. } => {
                     *position *= s;
                     *intensity *= s * s;
                 }

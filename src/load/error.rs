@@ -34,12 +34,7 @@ pub struct LoadError {
 impl LoadError {
     /// An error of `kind` in `path`.
     pub fn new(path: &Path, kind: LoadErrorKind, message: impl Into<String>) -> Self {
-        LoadError {
-            path: path.to_path_buf(),
-            location: None,
-            kind,
-            message: message.into(),
-        }
+        LoadError { path: path.to_path_buf(), location: None, kind, message: message.into() }
     }
 
     /// The same error at a location inside the file.
@@ -54,12 +49,7 @@ impl LoadError {
             std::io::ErrorKind::NotFound => "file not found".to_string(),
             _ => format!("cannot read file: {err}"),
         };
-        LoadError {
-            path: path.to_path_buf(),
-            location: None,
-            kind: LoadErrorKind::Io(err),
-            message,
-        }
+        LoadError { path: path.to_path_buf(), location: None, kind: LoadErrorKind::Io(err), message }
     }
 }
 

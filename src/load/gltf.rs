@@ -6,9 +6,5 @@ use super::{LoadError, LoadErrorKind, SceneDesc};
 
 /// Reads a `.gltf` or `.glb` file.
 pub fn load_gltf(path: &Path) -> Result<SceneDesc, LoadError> {
-    Err(LoadError::new(
-        path,
-        LoadErrorKind::Unsupported,
-        "glTF loading is not implemented yet",
-    ))
+    Err(LoadError::new(path, LoadErrorKind::Unsupported, "glTF loading is not implemented yet"))
 }

@@ -14,23 +14,14 @@ pub mod obj;
 
 use std::path::Path;
 
-pub use desc::{
-    CameraDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc, TextureDesc,
-};
+pub use desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc, TextureDesc};
 pub use error::{LoadError, LoadErrorKind};
 
 /// Reads a scene file, choosing the parser by extension (`.gltf`, `.glb`, `.obj`).
 pub fn load(path: &Path) -> Result<SceneDesc, LoadError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .unwrap_or_default();
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).unwrap_or_default();
     if !path.exists() {
-        return Err(LoadError::io(
-            path,
-            std::io::Error::from(std::io::ErrorKind::NotFound),
-        ));
+        return Err(LoadError::io(path, std::io::Error::from(std::io::ErrorKind::NotFound)));
     }
     match ext.as_str() {
         "gltf" | "glb" => gltf::load_gltf(path),

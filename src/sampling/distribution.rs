@@ -77,13 +77,8 @@ impl Distribution1D {
             index -= 1;
         }
         let width = self.cdf[index + 1] - self.cdf[index];
-        let u_remapped =
-            (((target - self.cdf[index]) / width) as f32).clamp(0.0, 1.0 - f32::EPSILON);
-        DiscreteSample {
-            index,
-            pmf: self.pmf(index),
-            u_remapped,
-        }
+        let u_remapped = (((target - self.cdf[index]) / width) as f32).clamp(0.0, 1.0 - f32::EPSILON);
+        DiscreteSample { index, pmf: self.pmf(index), u_remapped }
     }
 
     /// The uniform number that [`sample`](Self::sample) maps to the start of bin `index`

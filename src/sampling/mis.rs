@@ -15,11 +15,7 @@ pub fn power_heuristic(pdf_f: f32, pdf_g: f32) -> f32 {
 /// Balance heuristic for one sample from each of two strategies: `f / (f + g)`.
 #[inline]
 pub fn balance_heuristic(pdf_f: f32, pdf_g: f32) -> f32 {
-    if pdf_f + pdf_g == 0.0 {
-        0.0
-    } else {
-        pdf_f / (pdf_f + pdf_g)
-    }
+    if pdf_f + pdf_g == 0.0 { 0.0 } else { pdf_f / (pdf_f + pdf_g) }
 }
 
 #[cfg(test)]

@@ -35,10 +35,7 @@ impl Pcg32 {
     /// A generator whose stream is fully determined by `seed`.
     pub fn new(seed: u64) -> Self {
         let seq = mix64(seed ^ 0xda3e_39cb_94b9_5bdb);
-        let mut rng = Pcg32 {
-            state: 0,
-            inc: (seq << 1) | 1,
-        };
+        let mut rng = Pcg32 { state: 0, inc: (seq << 1) | 1 };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(mix64(seed));
         rng.next_u32();

@@ -31,24 +31,18 @@ pub struct IndependentSampler {
 impl IndependentSampler {
     /// A stream fully determined by `seed`.
     pub fn new(seed: u64) -> Self {
-        IndependentSampler {
-            rng: Pcg32::new(seed),
-        }
+        IndependentSampler { rng: Pcg32::new(seed) }
     }
 
     /// The stream of one pixel sample: a hash of (seed, pixel index, sample index), so images do
     /// not depend on the order in which threads visit pixels.
     pub fn for_pixel_sample(seed: u64, pixel: u64, sample: u64) -> Self {
-        IndependentSampler {
-            rng: Pcg32::from_words(&[seed, 0x5049_5845_4c, pixel, sample]),
-        }
+        IndependentSampler { rng: Pcg32::from_words(&[seed, 0x5049_5845_4c, pixel, sample]) }
     }
 
     /// A stream for any other purpose, keyed by a tag and indices (chain, step, light path...).
     pub fn for_stream(seed: u64, tag: u64, index: u64) -> Self {
-        IndependentSampler {
-            rng: Pcg32::from_words(&[seed, tag, index]),
-        }
+        IndependentSampler { rng: Pcg32::from_words(&[seed, tag, index]) }
     }
 
     /// The underlying generator, for integer draws.

@@ -13,11 +13,8 @@ pub fn sample_uniform_disk_concentric(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
-    };
+    let (r, theta) =
+        if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
     r * vec2(theta.cos(), theta.sin())
 }
 
@@ -216,24 +213,15 @@ mod tests {
     fn integrate_pdf_w(pdf: impl Fn(Vec3) -> f32) -> f64 {
         let mut r = Pcg32::new(5);
         let n = 400_000;
-        let sum: f64 = (0..n)
-            .map(|_| {
-                pdf(sample_uniform_sphere(uniform2(&mut r))) as f64 / uniform_sphere_pdf_w() as f64
-            })
-            .sum();
+        let sum: f64 =
+            (0..n).map(|_| pdf(sample_uniform_sphere(uniform2(&mut r))) as f64 / uniform_sphere_pdf_w() as f64).sum();
         sum / n as f64
     }
 
     #[test]
     fn directional_densities_integrate_to_one() {
         let cos = integrate_pdf_w(|w| cosine_hemisphere_pdf_w(w.z));
-        let cone = integrate_pdf_w(|w| {
-            if w.z >= 0.5 {
-                uniform_cone_pdf_w(0.5)
-            } else {
-                0.0
-            }
-        });
+        let cone = integrate_pdf_w(|w| if w.z >= 0.5 { uniform_cone_pdf_w(0.5) } else { 0.0 });
         let phong = integrate_pdf_w(|w| phong_lobe_pdf_w(w.z, 4.0));
         for (name, v) in [("cosine", cos), ("cone", cone), ("phong", phong)] {
             assert!((v - 1.0).abs() < 0.02, "{name} integrates to {v}");

@@ -64,14 +64,7 @@ pub struct CameraSample {
 impl Camera {
     /// A camera at `eye` looking at `target`. Callers validate the inputs (finite, distinct,
     /// `up` not parallel to the view direction, 0 < fov < 180°).
-    pub fn look_at(
-        eye: Vec3,
-        target: Vec3,
-        up: Vec3,
-        fov_y_radians: f32,
-        width: u32,
-        height: u32,
-    ) -> Self {
+    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_y_radians: f32, width: u32, height: u32) -> Self {
         let forward = (target - eye).normalize();
         let right = forward.cross(up).normalize();
         let up = right.cross(forward);
@@ -118,11 +111,7 @@ impl Camera {
     }
 
     fn lens_area(&self) -> f32 {
-        if self.lens_radius > 0.0 {
-            std::f32::consts::PI * self.lens_radius * self.lens_radius
-        } else {
-            1.0
-        }
+        if self.lens_radius > 0.0 { std::f32::consts::PI * self.lens_radius * self.lens_radius } else { 1.0 }
     }
 
     /// True for a pinhole camera (a delta in lens position).
@@ -143,18 +132,12 @@ impl Camera {
     pub fn generate_ray(&self, raster: Vec2, u_lens: Vec2) -> Ray {
         let d = self.plane_point(raster);
         if self.lens_radius <= 0.0 {
-            return Ray {
-                origin: self.position,
-                dir: d.normalize(),
-            };
+            return Ray { origin: self.position, dir: d.normalize() };
         }
         let l = sample_uniform_disk_concentric(u_lens) * self.lens_radius;
         let origin = self.position + self.right * l.x + self.up * l.y;
         let focus = self.position + d * self.focus_distance;
-        Ray {
-            origin,
-            dir: (focus - origin).normalize(),
-        }
+        Ray { origin, dir: (focus - origin).normalize() }
     }
 
     /// The raster position a ray leaving the lens at `p_lens` along `dir` maps to, or `None`
@@ -165,24 +148,13 @@ impl Camera {
             return None;
         }
         // Point on the focus plane (or the unit plane for a pinhole) → pinhole projection.
-        let dist = if self.lens_radius > 0.0 {
-            self.focus_distance
-        } else {
-            1.0
-        };
+        let dist = if self.lens_radius > 0.0 { self.focus_distance } else { 1.0 };
         let p_focus = p_lens + dir * (dist / cos) - self.position;
         let q = p_focus / p_focus.dot(self.forward);
         let x = q.dot(self.right) / self.tan_half_x;
         let y = q.dot(self.up) / self.tan_half_y;
-        let raster = vec2(
-            (x + 1.0) * 0.5 * self.width as f32,
-            (1.0 - y) * 0.5 * self.height as f32,
-        );
-        if raster.x < 0.0
-            || raster.y < 0.0
-            || raster.x >= self.width as f32
-            || raster.y >= self.height as f32
-        {
+        let raster = vec2((x + 1.0) * 0.5 * self.width as f32, (1.0 - y) * 0.5 * self.height as f32);
+        if raster.x < 0.0 || raster.y < 0.0 || raster.x >= self.width as f32 || raster.y >= self.height as f32 {
             return None;
         }
         Some(raster)
@@ -205,10 +177,7 @@ impl Camera {
         if cos <= 0.0 {
             return (0.0, 0.0);
         }
-        (
-            1.0 / self.lens_area(),
-            1.0 / (self.image_plane_area() * cos * cos * cos),
-        )
+        (1.0 / self.lens_area(), 1.0 / (self.image_plane_area() * cos * cos * cos))
     }
 
     /// Chooses a lens point to connect the scene point `p` to (light tracing).
@@ -225,14 +194,7 @@ impl Camera {
         let raster = self.raster_of(p_lens, -wi)?;
         let cos_lens = (-wi).dot(self.forward);
         let pdf_w = dist2 / (cos_lens * self.lens_area());
-        Some(CameraSample {
-            p_lens,
-            wi,
-            dist,
-            we: self.we(p_lens, -wi),
-            pdf_w,
-            raster,
-        })
+        Some(CameraSample { p_lens, wi, dist, we: self.we(p_lens, -wi), pdf_w, raster })
     }
 }
 
@@ -242,14 +204,7 @@ mod tests {
     use crate::sampling::Pcg32;
 
     fn cam() -> Camera {
-        Camera::look_at(
-            Vec3::new(1.0, 2.0, 3.0),
-            Vec3::new(0.0, 1.0, -2.0),
-            Vec3::Y,
-            0.8,
-            64,
-            48,
-        )
+        Camera::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 1.0, -2.0), Vec3::Y, 0.8, 64, 48)
     }
 
     #[test]
@@ -275,8 +230,7 @@ mod tests {
         for _ in 0..n {
             let w = crate::sampling::warp::sample_uniform_sphere(vec2(r.next_f32(), r.next_f32()));
             let cos = w.dot(c.forward).max(0.0);
-            sum += (c.we(c.position, w) * cos) as f64
-                / crate::sampling::warp::uniform_sphere_pdf_w() as f64;
+            sum += (c.we(c.position, w) * cos) as f64 / crate::sampling::warp::uniform_sphere_pdf_w() as f64;
         }
         let v = sum / n as f64;
         assert!((v - 1.0).abs() < 0.03, "{v}");

@@ -134,47 +134,29 @@ impl Scene {
             let m = &self.materials[self.mesh.material[tri as usize] as usize];
             if m.is_emissive() {
                 self.mesh.emitter[tri as usize] = list.len() as u32;
-                list.push(Light::Area {
-                    tri,
-                    two_sided: m.double_sided,
-                    area: self.mesh.area(tri),
-                });
+                list.push(Light::Area { tri, two_sided: m.double_sided, area: self.mesh.area(tri) });
             } else {
                 self.mesh.emitter[tri as usize] = NO_LIGHT;
             }
         }
         list.extend(punctual);
         let power: Vec<Vec3> = list.iter().map(|l| self.power_of(l)).collect();
-        let weights: Vec<f64> = power
-            .iter()
-            .map(|&p| luminance(p).max(p.max_element() * 1e-3) as f64)
-            .collect();
+        let weights: Vec<f64> = power.iter().map(|&p| luminance(p).max(p.max_element() * 1e-3) as f64).collect();
         let distribution = Distribution1D::new(&weights)?;
-        Some(Lights {
-            list,
-            power,
-            distribution,
-        })
+        Some(Lights { list, power, distribution })
     }
 
     fn power_of(&self, light: &Light) -> Vec3 {
         match *light {
-            Light::Area {
-                tri,
-                two_sided,
-                area,
-            } => {
+            Light::Area { tri, two_sided, area } => {
                 let m = &self.materials[self.mesh.material[tri as usize] as usize];
                 let sides = if two_sided { 2.0 } else { 1.0 };
                 m.mean_emission(&self.textures) * (PI * area * sides)
             }
             Light::Point { intensity, .. } => intensity * (4.0 * PI),
-            Light::Spot {
-                intensity,
-                cos_inner,
-                cos_outer,
-                ..
-            } => intensity * (2.0 * PI * ((1.0 - cos_inner) + (cos_inner - cos_outer) / 3.0)),
+            Light::Spot { intensity, cos_inner, cos_outer, .. } => {
+                intensity * (2.0 * PI * ((1.0 - cos_inner) + (cos_inner - cos_outer) / 3.0))
+            }
         }
     }
 
@@ -188,11 +170,7 @@ impl Scene {
         }
         let m = &self.materials[self.mesh.material[tri as usize] as usize];
         let c = ng.dot(w);
-        if c > 0.0 || (m.double_sided && c < 0.0) {
-            m.emission_at(uv, &self.textures)
-        } else {
-            Vec3::ZERO
-        }
+        if c > 0.0 || (m.double_sided && c < 0.0) { m.emission_at(uv, &self.textures) } else { Vec3::ZERO }
     }
 
     /// Chooses a light ∝ power and a point on it, for next-event estimation at `p_ref`.
@@ -200,11 +178,7 @@ impl Scene {
         let choice = self.lights.distribution.sample(u_light);
         let light = choice.index as u32;
         match self.lights.list[choice.index] {
-            Light::Area {
-                tri,
-                two_sided,
-                area,
-            } => {
+            Light::Area { tri, two_sided, area } => {
                 let b = sample_uniform_triangle(u);
                 let sp = self.mesh.surface_point(tri, b.x, b.y);
                 let to = sp.p - p_ref;
@@ -222,21 +196,9 @@ impl Scene {
                 let m = &self.materials[self.mesh.material[tri as usize] as usize];
                 let li = m.emission_at(sp.uv, &self.textures);
                 let pdf_w = choice.pmf / area * dist2 / cos_l.abs();
-                Some(LightSample {
-                    light,
-                    p: sp.p,
-                    n,
-                    wi,
-                    dist,
-                    li,
-                    pdf_w,
-                    delta: false,
-                })
+                Some(LightSample { light, p: sp.p, n, wi, dist, li, pdf_w, delta: false })
             }
-            Light::Point {
-                position,
-                intensity,
-            } => {
+            Light::Point { position, intensity } => {
                 let to = position - p_ref;
                 let dist2 = to.length_squared();
                 if dist2 <= 0.0 || !dist2.is_finite() {
@@ -254,13 +216,7 @@ impl Scene {
                     delta: true,
                 })
             }
-            Light::Spot {
-                position,
-                frame,
-                intensity,
-                cos_inner,
-                cos_outer,
-            } => {
+            Light::Spot { position, frame, intensity, cos_inner, cos_outer } => {
                 let to = position - p_ref;
                 let dist2 = to.length_squared();
                 if dist2 <= 0.0 || !dist2.is_finite() {
@@ -321,16 +277,10 @@ impl Scene {
         match self.lights.list[light as usize] {
             Light::Area { two_sided, .. } => {
                 let c = n.dot(dir);
-                if two_sided {
-                    0.5 * cosine_hemisphere_pdf_w(c.abs())
-                } else {
-                    cosine_hemisphere_pdf_w(c)
-                }
+                if two_sided { 0.5 * cosine_hemisphere_pdf_w(c.abs()) } else { cosine_hemisphere_pdf_w(c) }
             }
             Light::Point { .. } => uniform_sphere_pdf_w(),
-            Light::Spot {
-                frame, cos_outer, ..
-            } => {
+            Light::Spot { frame, cos_outer, .. } => {
                 if frame.n.dot(dir) >= cos_outer {
                     uniform_cone_pdf_w(cos_outer)
                 } else {
@@ -345,11 +295,7 @@ impl Scene {
         let choice = self.lights.distribution.sample(u_light);
         let light = choice.index as u32;
         match self.lights.list[choice.index] {
-            Light::Area {
-                tri,
-                two_sided,
-                area,
-            } => {
+            Light::Area { tri, two_sided, area } => {
                 let b = sample_uniform_triangle(u_pos);
                 let sp = self.mesh.surface_point(tri, b.x, b.y);
                 let (n, u_dir, side_pdf) = if two_sided {
@@ -379,10 +325,7 @@ impl Scene {
                     delta_pos: false,
                 })
             }
-            Light::Point {
-                position,
-                intensity,
-            } => Some(EmissionSample {
+            Light::Point { position, intensity } => Some(EmissionSample {
                 light,
                 p: position,
                 n: Vec3::ZERO,
@@ -392,13 +335,7 @@ impl Scene {
                 pdf_dir: uniform_sphere_pdf_w(),
                 delta_pos: true,
             }),
-            Light::Spot {
-                position,
-                frame,
-                intensity,
-                cos_inner,
-                cos_outer,
-            } => {
+            Light::Spot { position, frame, intensity, cos_inner, cos_outer } => {
                 let local = sample_uniform_cone(u_dir, cos_outer);
                 let falloff = spot_falloff(local.z, cos_inner, cos_outer);
                 Some(EmissionSample {

@@ -21,12 +21,7 @@ impl Texture {
     /// Wraps decoded texels.
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Self {
         let mean = texels.iter().copied().sum::<Vec3>() / texels.len().max(1) as f32;
-        Texture {
-            width,
-            height,
-            texels,
-            mean,
-        }
+        Texture { width, height, texels, mean }
     }
 
     /// Bilinearly filtered value at `uv` (glTF convention: v = 0 is the top row).
@@ -101,16 +96,9 @@ impl Material {
         };
         match self.scatter {
             Scatter::Diffuse => BsdfKind::Lambert { albedo: base },
-            Scatter::Glossy { specular, exponent } => BsdfKind::Phong {
-                kd: base,
-                ks: specular,
-                exponent,
-            },
+            Scatter::Glossy { specular, exponent } => BsdfKind::Phong { kd: base, ks: specular, exponent },
             Scatter::Mirror => BsdfKind::Mirror { reflectance: base },
-            Scatter::Dielectric { ior } => BsdfKind::Dielectric {
-                eta: ior,
-                tint: base,
-            },
+            Scatter::Dielectric { ior } => BsdfKind::Dielectric { eta: ior, tint: base },
         }
     }
 

@@ -52,11 +52,7 @@ impl Mesh {
     #[inline]
     pub fn corners(&self, tri: u32) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[tri as usize];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     /// Area of triangle `tri`.

@@ -115,10 +115,7 @@ impl Scene {
     /// Validates `desc` into a scene, applying command-line camera `settings`.
     pub fn from_desc(desc: SceneDesc, settings: &CameraSettings) -> Result<Scene, SceneError> {
         let path = desc.path.clone();
-        let err = |message: String| SceneError {
-            path: path.clone(),
-            message,
-        };
+        let err = |message: String| SceneError { path: path.clone(), message };
         let mut warnings = desc.warnings.clone();
 
         let materials: Vec<Material> = desc
@@ -130,18 +127,13 @@ impl Scene {
                 base_color_texture: m.base_color_texture.map(|t| t as u32),
                 scatter: match m.scatter {
                     ScatterDesc::Diffuse => Scatter::Diffuse,
-                    ScatterDesc::Glossy { specular, exponent } => Scatter::Glossy {
-                        specular: sanitize_color(specular),
-                        exponent: exponent.clamp(0.0, 1e5),
-                    },
+                    ScatterDesc::Glossy { specular, exponent } => {
+                        Scatter::Glossy { specular: sanitize_color(specular), exponent: exponent.clamp(0.0, 1e5) }
+                    }
                     ScatterDesc::Mirror => Scatter::Mirror,
-                    ScatterDesc::Dielectric { ior } => Scatter::Dielectric {
-                        ior: if ior.is_finite() && ior > 0.0 {
-                            ior
-                        } else {
-                            1.5
-                        },
-                    },
+                    ScatterDesc::Dielectric { ior } => {
+                        Scatter::Dielectric { ior: if ior.is_finite() && ior > 0.0 { ior } else { 1.5 } }
+                    }
                 },
                 emission: sanitize_color(m.emission),
                 emission_texture: m.emission_texture.map(|t| t as u32),
@@ -149,86 +141,47 @@ impl Scene {
             })
             .collect();
         for (i, m) in materials.iter().enumerate() {
-            for t in [m.base_color_texture, m.emission_texture]
-                .into_iter()
-                .flatten()
-            {
+            for t in [m.base_color_texture, m.emission_texture].into_iter().flatten() {
                 if t as usize >= desc.textures.len() {
-                    return Err(err(format!(
-                        "material {i} ('{}') refers to missing texture {t}",
-                        m.name
-                    )));
+                    return Err(err(format!("material {i} ('{}') refers to missing texture {t}", m.name)));
                 }
             }
         }
-        let textures: Vec<Texture> = desc
-            .textures
-            .into_iter()
-            .map(|t| Texture::new(t.width, t.height, t.texels))
-            .collect();
+        let textures: Vec<Texture> =
+            desc.textures.into_iter().map(|t| Texture::new(t.width, t.height, t.texels)).collect();
 
         let mut mesh = Mesh::default();
         let mut dropped = 0usize;
         for (mi, m) in desc.meshes.iter().enumerate() {
             if m.material >= materials.len() {
-                return Err(err(format!(
-                    "{}: refers to missing material {}",
-                    m.origin, m.material
-                )));
+                return Err(err(format!("{}: refers to missing material {}", m.origin, m.material)));
             }
             if m.indices.len() % 3 != 0 {
-                return Err(err(format!(
-                    "{}: index count {} is not a multiple of 3",
-                    m.origin,
-                    m.indices.len()
-                )));
+                return Err(err(format!("{}: index count {} is not a multiple of 3", m.origin, m.indices.len())));
             }
             let base = mesh.positions.len() as u32;
             let nv = m.positions.len();
-            if (!m.normals.is_empty() && m.normals.len() != nv)
-                || (!m.uvs.is_empty() && m.uvs.len() != nv)
-            {
-                return Err(err(format!(
-                    "{}: attribute counts differ from the {nv} positions",
-                    m.origin
-                )));
+            if (!m.normals.is_empty() && m.normals.len() != nv) || (!m.uvs.is_empty() && m.uvs.len() != nv) {
+                return Err(err(format!("{}: attribute counts differ from the {nv} positions", m.origin)));
             }
             mesh.positions.extend_from_slice(&m.positions);
             if m.normals.is_empty() {
                 mesh.normals.extend(std::iter::repeat_n(Vec3::ZERO, nv));
             } else {
-                mesh.normals.extend(
-                    m.normals
-                        .iter()
-                        .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO)),
-                );
+                mesh.normals.extend(m.normals.iter().map(|n| n.try_normalize().unwrap_or(Vec3::ZERO)));
             }
             if m.uvs.is_empty() {
                 mesh.uvs.extend(std::iter::repeat_n(Vec2::ZERO, nv));
             } else {
-                mesh.uvs.extend(
-                    m.uvs
-                        .iter()
-                        .map(|uv| if uv.is_finite() { *uv } else { Vec2::ZERO }),
-                );
+                mesh.uvs.extend(m.uvs.iter().map(|uv| if uv.is_finite() { *uv } else { Vec2::ZERO }));
             }
             for t in m.indices.chunks_exact(3) {
                 if t.iter().any(|&i| i as usize >= nv) {
-                    return Err(err(format!(
-                        "{} (mesh {mi}): vertex index out of range ({} vertices)",
-                        m.origin, nv
-                    )));
+                    return Err(err(format!("{} (mesh {mi}): vertex index out of range ({} vertices)", m.origin, nv)));
                 }
-                let [a, b, c] = [
-                    m.positions[t[0] as usize],
-                    m.positions[t[1] as usize],
-                    m.positions[t[2] as usize],
-                ];
+                let [a, b, c] = [m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]];
                 let area2 = (b - a).cross(c - a).length();
-                if !(a.is_finite() && b.is_finite() && c.is_finite())
-                    || !(area2 > 0.0)
-                    || !area2.is_finite()
-                {
+                if !(a.is_finite() && b.is_finite() && c.is_finite()) || !(area2 > 0.0) || !area2.is_finite() {
                     dropped += 1;
                     continue;
                 }
@@ -237,33 +190,19 @@ impl Scene {
             }
         }
         if dropped > 0 {
-            warnings.push(format!(
-                "dropped {dropped} degenerate triangle(s) (zero area or non-finite vertices)"
-            ));
+            warnings.push(format!("dropped {dropped} degenerate triangle(s) (zero area or non-finite vertices)"));
         }
         mesh.emitter = vec![NO_LIGHT; mesh.triangles.len()];
 
         let mut punctual = Vec::new();
         for (i, l) in desc.lights.iter().enumerate() {
             let light = match *l {
-                PunctualDesc::Point {
-                    position,
-                    intensity,
-                } => Light::Point {
-                    position,
-                    intensity: sanitize_color(intensity),
-                },
-                PunctualDesc::Spot {
-                    position,
-                    direction,
-                    intensity,
-                    inner_cone,
-                    outer_cone,
-                } => {
+                PunctualDesc::Point { position, intensity } => {
+                    Light::Point { position, intensity: sanitize_color(intensity) }
+                }
+                PunctualDesc::Spot { position, direction, intensity, inner_cone, outer_cone } => {
                     let Some(axis) = direction.try_normalize() else {
-                        return Err(err(format!(
-                            "light {i}: spot direction is zero or not finite"
-                        )));
+                        return Err(err(format!("light {i}: spot direction is zero or not finite")));
                     };
                     let outer = outer_cone.clamp(1e-3, std::f32::consts::FRAC_PI_2);
                     let inner = inner_cone.clamp(0.0, outer);
@@ -314,15 +253,15 @@ impl Scene {
             bounds,
             warnings,
         };
-        let has_any =
-            punctual.len() + scene.materials.iter().filter(|m| m.is_emissive()).count() > 0;
+        let has_any = punctual.len() + scene.materials.iter().filter(|m| m.is_emissive()).count() > 0;
         match scene.build_lights(punctual) {
             Some(lights) => scene.lights = lights,
             None if has_any => return Err(err("the scene's lights have zero total power".into())),
-            None => return Err(err(
-                "the scene has no light: add an emissive material or a KHR_lights_punctual light"
-                    .into(),
-            )),
+            None => {
+                return Err(err(
+                    "the scene has no light: add an emissive material or a KHR_lights_punctual light".into()
+                ));
+            }
         }
         Ok(scene)
     }
@@ -349,11 +288,7 @@ fn sanitize(v: f32) -> f32 {
     if v.is_finite() && v > 0.0 { v } else { 0.0 }
 }
 
-fn build_camera(
-    desc: Option<&CameraDesc>,
-    s: &CameraSettings,
-    bounds: &Bounds,
-) -> Result<Camera, String> {
+fn build_camera(desc: Option<&CameraDesc>, s: &CameraSettings, bounds: &Bounds) -> Result<Camera, String> {
     // A default camera frames the scene's bounds from +z, looking down -z.
     let fov_default = 45.0f32;
     let default_eye = || {
@@ -361,15 +296,9 @@ fn build_camera(
         bounds.center() + Vec3::Z * (r / (0.5 * fov_default.to_radians()).tan() + r)
     };
     let eye = s.eye.or(desc.map(|d| d.eye)).unwrap_or_else(default_eye);
-    let target = s
-        .target
-        .or(desc.map(|d| d.target))
-        .unwrap_or_else(|| bounds.center());
+    let target = s.target.or(desc.map(|d| d.target)).unwrap_or_else(|| bounds.center());
     let up = s.up.or(desc.map(|d| d.up)).unwrap_or(Vec3::Y);
-    let fov = s
-        .fov_y_deg
-        .or(desc.map(|d| d.fov_y_deg))
-        .unwrap_or(fov_default);
+    let fov = s.fov_y_deg.or(desc.map(|d| d.fov_y_deg)).unwrap_or(fov_default);
     if !(eye.is_finite() && target.is_finite() && up.is_finite()) {
         return Err("camera eye, target and up must be finite".into());
     }
@@ -381,50 +310,26 @@ fn build_camera(
         return Err("camera up vector is parallel to the viewing direction".into());
     }
     if !(fov > 0.0 && fov < 179.0) {
-        return Err(format!(
-            "camera vertical field of view {fov}° is outside (0°, 179°)"
-        ));
+        return Err(format!("camera vertical field of view {fov}° is outside (0°, 179°)"));
     }
-    let aspect = desc
-        .and_then(|d| d.aspect)
-        .filter(|a| a.is_finite() && *a > 0.0);
-    let (width, height) = match (
-        s.width.or(desc.and_then(|d| d.width)),
-        s.height.or(desc.and_then(|d| d.height)),
-    ) {
+    let aspect = desc.and_then(|d| d.aspect).filter(|a| a.is_finite() && *a > 0.0);
+    let (width, height) = match (s.width.or(desc.and_then(|d| d.width)), s.height.or(desc.and_then(|d| d.height))) {
         (Some(w), Some(h)) => (w, h),
-        (Some(w), None) => (
-            w,
-            ((w as f32 / aspect.unwrap_or(1.0)).round() as u32).max(1),
-        ),
-        (None, Some(h)) => (
-            ((h as f32 * aspect.unwrap_or(1.0)).round() as u32).max(1),
-            h,
-        ),
-        (None, None) => (
-            DEFAULT_WIDTH,
-            ((DEFAULT_WIDTH as f32 / aspect.unwrap_or(1.0)).round() as u32).max(1),
-        ),
+        (Some(w), None) => (w, ((w as f32 / aspect.unwrap_or(1.0)).round() as u32).max(1)),
+        (None, Some(h)) => (((h as f32 * aspect.unwrap_or(1.0)).round() as u32).max(1), h),
+        (None, None) => (DEFAULT_WIDTH, ((DEFAULT_WIDTH as f32 / aspect.unwrap_or(1.0)).round() as u32).max(1)),
     };
     if width == 0 || height == 0 || width > 16384 || height > 16384 {
-        return Err(format!(
-            "image size {width}×{height} is outside 1…16384 pixels per side"
-        ));
+        return Err(format!("image size {width}×{height} is outside 1…16384 pixels per side"));
     }
     if !(s.lens_radius >= 0.0 && s.lens_radius.is_finite()) {
-        return Err(format!(
-            "lens radius {} must be finite and ≥ 0",
-            s.lens_radius
-        ));
+        return Err(format!("lens radius {} must be finite and ≥ 0", s.lens_radius));
     }
     let focus = s.focus_distance.unwrap_or(forward.length());
     if !(focus > 0.0 && focus.is_finite()) {
         return Err(format!("focus distance {focus} must be finite and > 0"));
     }
-    Ok(
-        Camera::look_at(eye, target, up, fov.to_radians(), width, height)
-            .with_lens(s.lens_radius, focus),
-    )
+    Ok(Camera::look_at(eye, target, up, fov.to_radians(), width, height).with_lens(s.lens_radius, focus))
 }
 
 #[cfg(test)]
@@ -435,8 +340,7 @@ mod tests {
     #[test]
     fn builtin_scenes_validate_with_lights_and_cameras() {
         for name in builtin::NAMES {
-            let s = Scene::from_desc(builtin::by_name(name).unwrap(), &CameraSettings::default())
-                .unwrap();
+            let s = Scene::from_desc(builtin::by_name(name).unwrap(), &CameraSettings::default()).unwrap();
             assert!(s.lights.total_power().max_element() > 0.0, "{name}");
             assert!(s.warnings.is_empty(), "{name}: {:?}", s.warnings);
         }
@@ -447,9 +351,7 @@ mod tests {
         let s = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
         let area = 1.30 * 1.05; // 130 mm × 105 mm at 0.01 units per mm
         let expected = Vec3::new(17.0, 12.0, 4.0) * std::f32::consts::PI * area;
-        assert!(
-            (s.lights.total_power() - expected).abs().max_element() < 1e-3 * expected.max_element()
-        );
+        assert!((s.lights.total_power() - expected).abs().max_element() < 1e-3 * expected.max_element());
     }
 
     #[test]
@@ -460,11 +362,7 @@ mod tests {
             m.emission = Vec3::ZERO;
         }
         let e = Scene::from_desc(d, &CameraSettings::default()).unwrap_err();
-        assert!(
-            e.to_string()
-                .starts_with("box.gltf: the scene has no light"),
-            "{e}"
-        );
+        assert!(e.to_string().starts_with("box.gltf: the scene has no light"), "{e}");
     }
 
     #[test]
@@ -475,13 +373,7 @@ mod tests {
         let n = m.positions.len() as u32;
         m.indices.extend([n - 1, 0, 1, 0, 0, 1]);
         let s = Scene::from_desc(d, &CameraSettings::default()).unwrap();
-        assert!(
-            s.warnings
-                .iter()
-                .any(|w| w.contains("dropped 2 degenerate")),
-            "{:?}",
-            s.warnings
-        );
+        assert!(s.warnings.iter().any(|w| w.contains("dropped 2 degenerate")), "{:?}", s.warnings);
     }
 
     #[test]
