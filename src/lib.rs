@@ -15,10 +15,17 @@
 //! (EXR and PNG). Leaves: [`sampling`], [`bsdf`], [`color`].
 #![deny(missing_docs)]
 
+pub mod accel;
 pub mod bsdf;
 pub mod color;
+pub mod film;
+pub mod offline;
+pub mod options;
+pub mod output;
+pub mod render;
 
 pub mod load;
 
 pub mod sampling;
 pub mod scene;
+pub mod stats;

@@ -1,1 +1,213 @@
-fn main() {}
+//! The `mirage` command line: `render`, `info` and `diff`.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use mirage::accel::Accel;
+use mirage::color::luminance;
+use mirage::options::RenderArgs;
+use mirage::output::{self, Aovs};
+use mirage::render::{self, SceneSource};
+use mirage::scene::{CameraSettings, Light};
+
+/// mirage: a physically based CPU renderer for diffuse scenes (Metropolis Instant Radiosity,
+/// path tracing). Images are linear HDR EXR (float32) plus a tone-mapped PNG.
+#[derive(Parser, Debug)]
+#[command(name = "mirage", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render an image to EXR and PNG.
+    Render(RenderArgs),
+    /// Describe a scene: triangles, emitters and their power, bounds, camera.
+    Info {
+        /// Scene file or built-in scene name (default: the built-in Cornell box).
+        scene: Option<String>,
+    },
+    /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), mean bias; B is the reference.
+    Diff {
+        /// Test image.
+        a: PathBuf,
+        /// Reference image.
+        b: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => cmd_render(&args),
+        Command::Info { scene } => cmd_info(scene.as_deref()),
+        Command::Diff { a, b } => cmd_diff(&a, &b),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("mirage: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn progress_bar(quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(1);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} {msg} [{elapsed_precise}] {wide_bar} {percent:>3}% (eta {eta})")
+            .expect("valid progress template"),
+    );
+    pb
+}
+
+fn cmd_render(args: &RenderArgs) -> Result<()> {
+    let options = args.options()?;
+    if let Some(t) = args.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("cannot set up worker threads")?;
+    }
+    let source = SceneSource::from_arg(args.scene.as_deref());
+    let t0 = Instant::now();
+    let mut scene = render::load_scene(&source, &args.camera.settings())?;
+    for w in &scene.warnings {
+        eprintln!("mirage: warning: {w}");
+    }
+    let accel = Accel::build(&scene.mesh);
+    if let Some(at) = args.camera.focus_at {
+        render::focus_at(&mut scene, &accel, at)?;
+    }
+    let setup = t0.elapsed();
+    let exr_path = match &args.output {
+        Some(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) => p.with_extension("exr"),
+        Some(p) => p.clone(),
+        None => PathBuf::from("out").join(format!("{}-{}.exr", source.name(), options.mode.name())),
+    };
+    let png_path = exr_path.with_extension("png");
+    if let Some(dir) = exr_path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create output directory", dir.display()))?;
+    }
+    let pb = progress_bar(args.quiet);
+    pb.set_message(format!("{} {}", options.mode.name(), source.name()));
+    let out = render::render(&scene, &accel, &options, &pb);
+    let image = out.film.image();
+    let aovs = out.film.aov_images();
+    let aov_refs = match &aovs {
+        Some((a, n, d)) => Aovs { albedo: Some(a), normal: Some(n), depth: Some(d) },
+        None => Aovs::default(),
+    };
+    output::write_exr(&exr_path, &image, aov_refs)?;
+    output::write_png(&png_path, &image, options.tonemap)?;
+    let secs = out.elapsed.as_secs_f64().max(1e-9);
+    println!(
+        "{} {}: {}×{}, {} spp in {:.2} s (+{:.2} s setup), {:.2} Msamples/s, {:.2} Mrays/s{} → {}, {}",
+        options.mode.name(),
+        source.name(),
+        scene.camera.width,
+        scene.camera.height,
+        out.spp,
+        secs,
+        setup.as_secs_f64(),
+        out.stats.samples as f64 / secs / 1e6,
+        out.stats.rays() as f64 / secs / 1e6,
+        if out.stats.discarded > 0 {
+            format!(", {} non-finite samples discarded", out.stats.discarded)
+        } else {
+            String::new()
+        },
+        exr_path.display(),
+        png_path.display()
+    );
+    Ok(())
+}
+
+fn cmd_info(scene: Option<&str>) -> Result<()> {
+    let source = SceneSource::from_arg(scene);
+    let scene = render::load_scene(&source, &CameraSettings::default())?;
+    for w in &scene.warnings {
+        eprintln!("mirage: warning: {w}");
+    }
+    let b = scene.bounds;
+    println!("scene      {}", source.name());
+    println!("triangles  {}", scene.mesh.len());
+    println!("materials  {}", scene.materials.len());
+    println!("textures   {}", scene.textures.len());
+    println!(
+        "bounds     [{:.4}, {:.4}, {:.4}] – [{:.4}, {:.4}, {:.4}]",
+        b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+    );
+    let c = &scene.camera;
+    println!(
+        "camera     eye [{:.4}, {:.4}, {:.4}] forward [{:.3}, {:.3}, {:.3}] fov_y {:.2}° {}×{}{}",
+        c.position.x,
+        c.position.y,
+        c.position.z,
+        c.forward.x,
+        c.forward.y,
+        c.forward.z,
+        c.fov_y_radians.to_degrees(),
+        c.width,
+        c.height,
+        if c.lens_radius > 0.0 { format!(" lens {} focus {}", c.lens_radius, c.focus_distance) } else { String::new() }
+    );
+    let total = scene.lights.total_power();
+    let area = scene.lights.list.iter().filter(|l| matches!(l, Light::Area { .. })).count();
+    println!(
+        "emitters   {} ({} emissive triangles, {} punctual), total power [{:.4}, {:.4}, {:.4}] W",
+        scene.lights.list.len(),
+        area,
+        scene.lights.list.len() - area,
+        total.x,
+        total.y,
+        total.z
+    );
+    // Group emissive triangles by material for a readable list.
+    let mut by_material: Vec<(String, usize, glam::Vec3)> = Vec::new();
+    for (light, power) in scene.lights.list.iter().zip(&scene.lights.power) {
+        let name = match light {
+            Light::Area { tri, .. } => format!("material '{}'", scene.material_of(*tri).name),
+            Light::Point { position, .. } => {
+                format!("point light at [{:.3}, {:.3}, {:.3}]", position.x, position.y, position.z)
+            }
+            Light::Spot { position, .. } => {
+                format!("spot light at [{:.3}, {:.3}, {:.3}]", position.x, position.y, position.z)
+            }
+        };
+        match by_material.iter_mut().find(|(n, _, _)| *n == name) {
+            Some(e) => {
+                e.1 += 1;
+                e.2 += *power;
+            }
+            None => by_material.push((name, 1, *power)),
+        }
+    }
+    for (name, count, power) in by_material {
+        println!(
+            "  {name}: {count} emitter(s), power [{:.4}, {:.4}, {:.4}] W ({:.1} % of luminance)",
+            power.x,
+            power.y,
+            power.z,
+            100.0 * luminance(power) / luminance(total).max(1e-30)
+        );
+    }
+    Ok(())
+}
+
+fn cmd_diff(a: &Path, b: &Path) -> Result<()> {
+    let ia = output::read_exr(a)?;
+    let ib = output::read_exr(b)?;
+    if (ia.width, ia.height) != (ib.width, ib.height) {
+        bail!("{} is {}×{} but {} is {}×{}", a.display(), ia.width, ia.height, b.display(), ib.width, ib.height);
+    }
+    let e = ia.errors(&ib);
+    println!("mse {:.6e}  relmse {:.6e}  mean_bias {:+.4} %", e.mse, e.rel_mse, 100.0 * e.mean_bias);
+    Ok(())
+}

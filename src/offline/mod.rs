@@ -1,0 +1,170 @@
+//! Offline estimators and their progressive driver.
+//!
+//! An estimator is a per-sample function of `&Scene`, `&Accel` and `&mut impl Sampler`
+//! ([`pt::radiance`]); the driver ([`render_progressive`]) owns threads (rayon over tiles),
+//! passes, the time / sample budget, progress and film writes. Every pixel sample draws from a
+//! stream hashed from (seed, pixel, sample index), so the image is bit-identical at any thread
+//! count for a sample budget.
+
+pub mod pt;
+
+use std::time::{Duration, Instant};
+
+use glam::{Vec2, Vec3, vec2};
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+
+use crate::accel::Accel;
+use crate::film::{AovSample, Film, FilmTile, FilterKind};
+use crate::sampling::{IndependentSampler, Sampler};
+use crate::scene::Scene;
+use crate::stats::RayStats;
+
+/// When a progressive render stops.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// This many samples per pixel.
+    Samples(u32),
+    /// As many passes as fit in this wall-clock time (at least one).
+    Time(Duration),
+}
+
+/// Settings shared by the offline modes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OfflineSettings {
+    /// When to stop.
+    pub budget: Budget,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Maximum number of scattering events along a path.
+    pub max_depth: u32,
+    /// Pixel reconstruction filter.
+    pub filter: FilterKind,
+    /// Accumulate albedo / normal / depth AOVs.
+    pub aovs: bool,
+}
+
+impl OfflineSettings {
+    /// Quick preview quality.
+    pub fn preview() -> Self {
+        OfflineSettings { budget: Budget::Samples(16), seed: 0, max_depth: 128, filter: FilterKind::Box, aovs: false }
+    }
+
+    /// Final quality.
+    pub fn final_() -> Self {
+        OfflineSettings { budget: Budget::Samples(1024), ..Self::preview() }
+    }
+}
+
+/// What a render produced.
+#[derive(Debug)]
+pub struct RenderOutput {
+    /// The accumulated film.
+    pub film: Film,
+    /// Ray and sample counts.
+    pub stats: RayStats,
+    /// Samples per pixel reached.
+    pub spp: u32,
+    /// Wall-clock time.
+    pub elapsed: Duration,
+}
+
+/// Side length of the square tiles threads render.
+pub const TILE: u32 = 16;
+
+/// Renders with a per-pixel-sample function `sample_fn(scene, accel, raster, sampler, tile)
+/// -> (radiance, aov, stats)` progressively until the budget is spent. `splats_per_pass`
+/// tells the film that each pass also splats one light-path set per pixel (BDPT).
+pub fn render_progressive<F>(
+    scene: &Scene,
+    settings: &OfflineSettings,
+    progress: &ProgressBar,
+    splats_per_pass: bool,
+    sample_fn: F,
+) -> RenderOutput
+where
+    F: Fn(Vec2, &mut IndependentSampler, &mut FilmTile, &mut RayStats) -> (Vec3, AovSample) + Sync,
+{
+    let cam = &scene.camera;
+    let mut film = Film::new(cam.width, cam.height, settings.filter, settings.aovs);
+    let tiles = film.tiles(TILE);
+    let start = Instant::now();
+    let mut stats = RayStats::default();
+    // Samples per pixel per pass: small passes keep time budgets tight.
+    let per_pass = match settings.budget {
+        Budget::Samples(n) => n.clamp(1, 4),
+        Budget::Time(_) => 1,
+    };
+    match settings.budget {
+        Budget::Samples(n) => progress.set_length(n as u64),
+        Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
+    }
+    let mut spp = 0u32;
+    loop {
+        let count = match settings.budget {
+            Budget::Samples(n) => per_pass.min(n - spp),
+            Budget::Time(_) => per_pass,
+        };
+        let filter = &film.filter;
+        let results: Vec<(FilmTile, RayStats)> = tiles
+            .par_iter()
+            .map(|&(x0, y0, w, h)| {
+                let mut tile = FilmTile::new(x0, y0, w, h, settings.aovs);
+                let mut st = RayStats::default();
+                for y in y0..y0 + h {
+                    for x in x0..x0 + w {
+                        let pixel = (y as u64) * cam.width as u64 + x as u64;
+                        for s in spp..spp + count {
+                            let mut sampler = IndependentSampler::for_pixel_sample(settings.seed, pixel, s as u64);
+                            let fs = filter.sample(sampler.next_2d());
+                            let raster = vec2(x as f32 + 0.5, y as f32 + 0.5) + fs.offset;
+                            let (l, aov) = sample_fn(raster, &mut sampler, &mut tile, &mut st);
+                            st.samples += 1;
+                            if l.is_finite() {
+                                tile.add(x, y, l, fs.weight);
+                            } else {
+                                st.discarded += 1;
+                                tile.add(x, y, Vec3::ZERO, fs.weight);
+                            }
+                            tile.add_aov(x, y, &aov);
+                        }
+                    }
+                }
+                (tile, st)
+            })
+            .collect();
+        for (tile, st) in &results {
+            film.merge_tile(tile);
+            stats += *st;
+        }
+        if splats_per_pass {
+            for _ in 0..count {
+                film.add_splat_pass();
+            }
+        }
+        spp += count;
+        let done = match settings.budget {
+            Budget::Samples(n) => {
+                progress.set_position(spp as u64);
+                spp >= n
+            }
+            Budget::Time(t) => {
+                progress.set_position(start.elapsed().as_millis().min(t.as_millis()) as u64);
+                start.elapsed() >= t
+            }
+        };
+        if done {
+            break;
+        }
+    }
+    progress.finish_and_clear();
+    RenderOutput { film, stats, spp, elapsed: start.elapsed() }
+}
+
+/// Renders `scene` with the reference path tracer.
+pub fn render_pt(scene: &Scene, accel: &Accel, settings: &OfflineSettings, progress: &ProgressBar) -> RenderOutput {
+    render_progressive(scene, settings, progress, false, |raster, sampler, _tile, st| {
+        let ray = scene.camera.generate_ray(raster, sampler.next_2d());
+        pt::radiance(scene, accel, ray, sampler, settings.max_depth, st)
+    })
+}

@@ -1,0 +1,106 @@
+//! The reference path tracer (`--mode pt`): unidirectional path tracing with next-event
+//! estimation on area and punctual lights, multiple importance sampling of light and BSDF
+//! samples with the power heuristic (Veach 1997, §9.2), Russian roulette, and delta BSDFs
+//! handled by flags. This is the estimator every other mode is checked against.
+
+use glam::Vec3;
+
+use crate::accel::{Accel, offset_origin};
+use crate::bsdf::{Bsdf, TransportMode};
+use crate::film::AovSample;
+use crate::sampling::{Sampler, power_heuristic};
+use crate::scene::{Ray, Scene};
+use crate::stats::RayStats;
+
+/// Bounces after which Russian roulette may end a path.
+pub const RR_START: u32 = 3;
+
+/// Estimates the radiance arriving at the camera along `ray` with at most `max_depth`
+/// scattering events. Returns the estimate and the first-hit AOVs.
+pub fn radiance(
+    scene: &Scene,
+    accel: &Accel,
+    ray: Ray,
+    sampler: &mut impl Sampler,
+    max_depth: u32,
+    stats: &mut RayStats,
+) -> (Vec3, AovSample) {
+    let mut l = Vec3::ZERO;
+    let mut beta = Vec3::ONE;
+    let mut aov = AovSample::default();
+    let mut ray = ray;
+    // Density of the BSDF sample that produced the current ray, for MIS with light sampling.
+    let mut prev_pdf_w = 0.0f32;
+    let mut prev_delta = true;
+    let mut prev_p = ray.origin;
+    let mut depth = 0u32;
+    loop {
+        stats.closest += 1;
+        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { break };
+        let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
+        let wo = -ray.dir;
+        let material = scene.material_of(hit.tri);
+
+        // Emission seen along the ray: full weight for camera rays and after delta bounces,
+        // otherwise MIS against next-event estimation.
+        let le = scene.emitted(hit.tri, sp.ng, sp.uv, wo);
+        if le != Vec3::ZERO {
+            if depth == 0 || prev_delta {
+                l += beta * le;
+            } else {
+                let pdf_light = scene.pdf_li(prev_p, hit.tri, sp.p, sp.ng);
+                l += beta * le * power_heuristic(prev_pdf_w, pdf_light);
+            }
+        }
+
+        let bsdf = Bsdf::new(material.bsdf_kind(sp.uv, &scene.textures), sp.ns, sp.ng, wo);
+        if depth == 0 {
+            aov = AovSample { albedo: bsdf.albedo(), normal: bsdf.frame.n, depth: hit.t };
+        }
+        if depth >= max_depth {
+            break;
+        }
+        let corners = scene.mesh.corners(hit.tri);
+
+        // Next-event estimation.
+        let u_light = sampler.next_1d();
+        let u_light_pos = sampler.next_2d();
+        if !bsdf.is_delta()
+            && let Some(ls) = scene.sample_li(sp.p, u_light, u_light_pos)
+        {
+            let f = bsdf.f(wo, ls.wi) * bsdf.abs_cos(ls.wi);
+            if f != Vec3::ZERO && ls.li != Vec3::ZERO {
+                let origin = offset_origin(&sp, &corners, ls.wi);
+                stats.shadow += 1;
+                if !accel.occluded(origin, ls.p - origin, 1.0 - 1e-4) {
+                    let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf_w, bsdf.pdf_w(wo, ls.wi)) };
+                    l += beta * f * ls.li * (w / ls.pdf_w);
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        let u_lobe = sampler.next_1d();
+        let u_dir = sampler.next_2d();
+        let Some(bs) = bsdf.sample(wo, u_lobe, u_dir, TransportMode::Radiance) else { break };
+        beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf_w);
+        if beta == Vec3::ZERO || !beta.is_finite() {
+            break;
+        }
+        prev_pdf_w = bs.pdf_w;
+        prev_delta = bs.delta;
+        prev_p = sp.p;
+        depth += 1;
+        ray = Ray { origin: offset_origin(&sp, &corners, bs.wi), dir: bs.wi };
+
+        // Russian roulette (Arvo & Kirk 1990): survive with probability max component of beta.
+        if depth >= RR_START {
+            let q = beta.max_element().min(0.95);
+            if sampler.next_1d() >= q {
+                break;
+            }
+            beta /= q;
+        }
+    }
+    (l, aov)
+}

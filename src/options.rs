@@ -1,0 +1,250 @@
+//! Command-line arguments (clap) → validated [`RenderOptions`].
+//!
+//! The scene file says what to render (geometry, materials, camera); the command line says how
+//! (mode, budget, resolution, seed), as papers/000 §4.2.5 recommends. Every flag's help text is
+//! its documentation.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::{Args, ValueEnum};
+use glam::{Vec2, Vec3};
+
+use crate::film::{FilterKind, Tonemap};
+use crate::offline::{Budget, OfflineSettings};
+use crate::scene::CameraSettings;
+
+/// Rendering modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// Path tracing with next-event estimation and MIS: the reference.
+    Pt,
+}
+
+impl Mode {
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Pt => "pt",
+        }
+    }
+}
+
+/// Pixel filters as command-line values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FilterArg {
+    /// Box of radius ½ pixel: the mean radiance through each pixel (default).
+    Box,
+    /// Tent of radius 1.
+    Tent,
+    /// Gaussian, σ = ½, radius 1.5.
+    Gaussian,
+    /// Mitchell–Netravali, B = C = ⅓, radius 2.
+    Mitchell,
+    /// Lanczos (a = 2), radius 2.
+    Lanczos,
+}
+
+/// Tone-mapping operators for the PNG.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TonemapArg {
+    /// Reinhard et al. 2002, global photographic operator (default).
+    Reinhard,
+    /// Linear: multiply by 2^--exposure, clamp, sRGB.
+    Exposure,
+}
+
+/// The camera flags shared by `render` and `view`.
+#[derive(Args, Clone, Debug, Default)]
+pub struct CameraArgs {
+    /// Image width in pixels (default: the scene's, else 512).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the scene's, else from the aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Camera position "x,y,z" (overrides the scene's camera).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point the camera looks at, "x,y,z".
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Camera up vector, "x,y,z".
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees.
+    #[arg(long = "fov-y")]
+    pub fov_y: Option<f32>,
+    /// Thin-lens aperture radius in scene units (0 = pinhole).
+    #[arg(long, default_value_t = 0.0)]
+    pub lens_radius: f32,
+    /// Distance of the plane in focus (default: eye to target).
+    #[arg(long)]
+    pub focus_distance: Option<f32>,
+    /// Focus on whatever is seen through this image point "x,y" (pixels): the focus distance
+    /// is found with a ray through it (papers/000 Fig. 11).
+    #[arg(long, value_parser = parse_vec2)]
+    pub focus_at: Option<Vec2>,
+}
+
+impl CameraArgs {
+    /// The camera overrides for scene validation (the focus point is resolved later, with a ray).
+    pub fn settings(&self) -> CameraSettings {
+        CameraSettings {
+            width: self.width,
+            height: self.height,
+            eye: self.eye,
+            target: self.target,
+            up: self.up,
+            fov_y_deg: self.fov_y,
+            lens_radius: self.lens_radius,
+            focus_distance: self.focus_distance,
+        }
+    }
+}
+
+/// The flags of `mirage render`.
+#[derive(Args, Clone, Debug)]
+pub struct RenderArgs {
+    /// Scene file (.gltf, .glb, .obj) or the name of a built-in scene (cornell, furnace,
+    /// ajar-door, left-right, direct-indirect, light-box, glass-sphere). Default: the built-in
+    /// Cornell box.
+    pub scene: Option<String>,
+    /// Rendering mode.
+    #[arg(long, value_enum, default_value_t = Mode::Pt)]
+    pub mode: Mode,
+    /// Samples per pixel (default 64 when no --time is given).
+    #[arg(long, conflicts_with = "time")]
+    pub spp: Option<u32>,
+    /// Render progressively for this many seconds instead of a fixed sample count.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Seed of every random stream: the same seed gives the same image at any thread count.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Maximum number of scattering events per path (Russian roulette ends most paths earlier).
+    #[arg(long, default_value_t = 128)]
+    pub max_depth: u32,
+    /// Pixel reconstruction filter.
+    #[arg(long, value_enum, default_value_t = FilterArg::Box)]
+    pub filter: FilterArg,
+    /// Also write albedo, normal and depth layers into the EXR.
+    #[arg(long)]
+    pub aov: bool,
+    /// Tone mapping for the PNG.
+    #[arg(long, value_enum, default_value_t = TonemapArg::Reinhard)]
+    pub tonemap: TonemapArg,
+    /// Exposure in stops for `--tonemap exposure` (implies it when given).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f32>,
+    /// Output EXR path; a PNG is written beside it. Default: out/<scene>-<mode>.exr.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Do not show a progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Camera settings.
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+/// A command-line value that makes no sense, with the flag it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OptionsError(pub String);
+
+impl std::fmt::Display for OptionsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for OptionsError {}
+
+/// Validated settings of a render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Mode.
+    pub mode: Mode,
+    /// Settings of the offline estimators.
+    pub offline: OfflineSettings,
+    /// PNG tone mapping.
+    pub tonemap: Tonemap,
+}
+
+impl RenderArgs {
+    /// Checks the numeric flags and builds the options.
+    pub fn options(&self) -> Result<RenderOptions, OptionsError> {
+        let budget = match (self.spp, self.time) {
+            (Some(0), _) => return Err(OptionsError("--spp must be at least 1".into())),
+            (Some(n), _) if n > 1 << 24 => {
+                return Err(OptionsError(format!("--spp {n} is absurdly large (max 16777216)")));
+            }
+            (Some(n), _) => Budget::Samples(n),
+            (None, Some(t)) if !(t > 0.0 && t.is_finite() && t < 1e7) => {
+                return Err(OptionsError(format!("--time {t} must be a positive number of seconds")));
+            }
+            (None, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
+            (None, None) => Budget::Samples(64),
+        };
+        if self.max_depth > 100_000 {
+            return Err(OptionsError(format!("--max-depth {} is absurdly large (max 100000)", self.max_depth)));
+        }
+        if let Some(t) = self.threads
+            && t == 0
+        {
+            return Err(OptionsError("--threads must be at least 1".into()));
+        }
+        if let Some(e) = self.exposure
+            && !e.is_finite()
+        {
+            return Err(OptionsError("--exposure must be finite".into()));
+        }
+        for (flag, v) in [("--width", self.camera.width), ("--height", self.camera.height)] {
+            if let Some(v) = v
+                && !(1..=16384).contains(&v)
+            {
+                return Err(OptionsError(format!("{flag} {v} is outside 1…16384")));
+            }
+        }
+        let filter = match self.filter {
+            FilterArg::Box => FilterKind::Box,
+            FilterArg::Tent => FilterKind::Tent,
+            FilterArg::Gaussian => FilterKind::Gaussian,
+            FilterArg::Mitchell => FilterKind::Mitchell,
+            FilterArg::Lanczos => FilterKind::Lanczos,
+        };
+        let tonemap = match (self.tonemap, self.exposure) {
+            (_, Some(e)) => Tonemap::Exposure(e),
+            (TonemapArg::Exposure, None) => Tonemap::Exposure(0.0),
+            (TonemapArg::Reinhard, None) => Tonemap::Reinhard,
+        };
+        Ok(RenderOptions {
+            mode: self.mode,
+            offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },
+            tonemap,
+        })
+    }
+}
+
+/// Parses "x,y,z".
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> =
+        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
+    match v.as_slice() {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(*x, *y, *z)),
+        _ => Err(format!("'{s}' is not three finite numbers x,y,z")),
+    }
+}
+
+/// Parses "x,y".
+pub fn parse_vec2(s: &str) -> Result<Vec2, String> {
+    let v: Vec<f32> =
+        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| format!("'{s}': {e}"))?;
+    match v.as_slice() {
+        [x, y] if x.is_finite() && y.is_finite() => Ok(Vec2::new(*x, *y)),
+        _ => Err(format!("'{s}' is not two finite numbers x,y")),
+    }
+}

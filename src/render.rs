@@ -1,0 +1,107 @@
+//! One short function per step of a render, in pipeline order (like pbrt's `RenderCPU`):
+//! resolve the scene argument, load and validate, build the BVH, resolve the focus point, run
+//! the mode.
+
+use std::fmt;
+use std::path::PathBuf;
+
+use glam::{Vec2, vec2};
+use indicatif::ProgressBar;
+
+use crate::accel::Accel;
+use crate::load::{self, LoadError, builtin};
+use crate::offline::{self, RenderOutput};
+use crate::options::{Mode, RenderOptions};
+use crate::scene::{CameraSettings, Scene, SceneError};
+
+/// Where a scene comes from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SceneSource {
+    /// A scene built into the binary.
+    Builtin(String),
+    /// A scene file.
+    File(PathBuf),
+}
+
+impl SceneSource {
+    /// Interprets the SCENE argument: none → the built-in Cornell box; the name of a built-in
+    /// scene (when no file of that name exists) → that scene; anything else → a file path.
+    pub fn from_arg(arg: Option<&str>) -> SceneSource {
+        match arg {
+            None => SceneSource::Builtin("cornell".into()),
+            Some(a) if builtin::NAMES.contains(&a) && !std::path::Path::new(a).exists() => {
+                SceneSource::Builtin(a.into())
+            }
+            Some(a) => SceneSource::File(PathBuf::from(a)),
+        }
+    }
+
+    /// A short name for output files and summaries.
+    pub fn name(&self) -> String {
+        match self {
+            SceneSource::Builtin(n) => n.clone(),
+            SceneSource::File(p) => {
+                p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into())
+            }
+        }
+    }
+}
+
+/// Why a scene could not be prepared.
+#[derive(Debug)]
+pub enum PrepareError {
+    /// Reading the file failed.
+    Load(LoadError),
+    /// The scene is not renderable.
+    Scene(SceneError),
+    /// The focus point sees nothing.
+    Focus(String),
+}
+
+impl fmt::Display for PrepareError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PrepareError::Load(e) => e.fmt(f),
+            PrepareError::Scene(e) => e.fmt(f),
+            PrepareError::Focus(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for PrepareError {}
+
+/// Loads and validates a scene.
+pub fn load_scene(source: &SceneSource, camera: &CameraSettings) -> Result<Scene, PrepareError> {
+    let desc = match source {
+        SceneSource::Builtin(name) => builtin::by_name(name).expect("built-in scene names are checked in from_arg"),
+        SceneSource::File(path) => load::load(path).map_err(PrepareError::Load)?,
+    };
+    Scene::from_desc(desc, camera).map_err(PrepareError::Scene)
+}
+
+/// Sets the thin lens's focus distance to the depth (along the view axis) of whatever is seen
+/// through raster point `at` (papers/000 Fig. 11).
+pub fn focus_at(scene: &mut Scene, accel: &Accel, at: Vec2) -> Result<(), PrepareError> {
+    let cam = &scene.camera;
+    if !(at.x >= 0.0 && at.y >= 0.0 && at.x < cam.width as f32 && at.y < cam.height as f32) {
+        return Err(PrepareError::Focus(format!(
+            "--focus-at {},{} lies outside the {}×{} image",
+            at.x, at.y, cam.width, cam.height
+        )));
+    }
+    let pinhole = cam.clone().with_lens(0.0, cam.focus_distance);
+    let ray = pinhole.generate_ray(at, vec2(0.5, 0.5));
+    let hit = accel.intersect(ray.origin, ray.dir, f32::INFINITY).ok_or_else(|| {
+        PrepareError::Focus(format!("--focus-at {},{}: the ray through that point hits nothing", at.x, at.y))
+    })?;
+    let depth = hit.t * ray.dir.dot(cam.forward);
+    scene.camera = cam.clone().with_lens(cam.lens_radius, depth);
+    Ok(())
+}
+
+/// Runs the requested mode.
+pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &ProgressBar) -> RenderOutput {
+    match options.mode {
+        Mode::Pt => offline::render_pt(scene, accel, &options.offline, progress),
+    }
+}
