@@ -5,6 +5,14 @@
 //! watertight test ([`triangle`]). Queries: closest hit and occlusion for single rays
 //! ([`single`]). Debug builds validate the tree after building.
 //!
+//! **Canonical frame.** obvhs's CWBVH node test clips every ray at an absolute t of 1e-4
+//! (`cwbvh::node::EPSILON`), which at small scene scales skips nearby geometry (light leaks in
+//! corners; a Cornell box scaled by 1e-3 rendered visibly darker contact shadows). The BVH is
+//! therefore built over the triangles mapped into a canonical frame, `x' = (x − centre)·k` with
+//! k making the scene's bounding-box diagonal 2²⁰, and rays are mapped with unit directions.
+//! The clip distance is then ~1e-10 of the scene size, far below the ray offsets below, and
+//! the structure behaves identically at every scene scale.
+//!
 //! **Offset policy for rays leaving a surface** (the same for single rays and packets): the
 //! origin is moved off the surface along the geometric normal, towards the side the ray leaves
 //! on, by [`ray_offset`] = 2⁻¹⁸ × the largest absolute coordinate of the triangle and the point
@@ -39,8 +47,30 @@ pub struct Hit {
     pub b2: f32,
 }
 
+/// The map from world space to the canonical frame of the BVH (see the module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CanonicalFrame {
+    /// World-space centre of the scene bounds.
+    pub center: Vec3,
+    /// World → canonical scale factor.
+    pub scale: f32,
+}
+
+/// Diagonal of the scene bounds in the canonical frame.
+pub const CANONICAL_DIAGONAL: f32 = 1_048_576.0;
+
+impl CanonicalFrame {
+    /// A world point in the canonical frame.
+    #[inline]
+    pub fn point(&self, p: Vec3) -> Vec3 {
+        (p - self.center) * self.scale
+    }
+}
+
 /// The BVH with its triangles in leaf order.
 pub struct Accel {
+    /// World → canonical frame map.
+    pub frame: CanonicalFrame,
     pub(crate) bvh: CwBvh,
     /// Triangle corners in BVH primitive order.
     pub(crate) tris: Vec<[Vec3A; 3]>,
@@ -57,9 +87,17 @@ impl std::fmt::Debug for Accel {
 impl Accel {
     /// Builds the BVH over all triangles of `mesh` (must be non-empty).
     pub fn build(mesh: &Mesh) -> Accel {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for p in &mesh.positions {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let diag = (hi - lo).length();
+        let scale = if diag > 0.0 && diag.is_finite() { CANONICAL_DIAGONAL / diag } else { 1.0 };
+        let frame = CanonicalFrame { center: 0.5 * (lo + hi), scale };
         let tris: Vec<Triangle> = (0..mesh.len() as u32)
             .map(|t| {
-                let [a, b, c] = mesh.corners(t);
+                let [a, b, c] = mesh.corners(t).map(|p| frame.point(p));
                 Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
             })
             .collect();
@@ -70,7 +108,7 @@ impl Accel {
             let t = &tris[i as usize];
             [t.v0, t.v1, t.v2]
         });
-        let accel = Accel { tris: ordered.collect(), prim_to_tri, bvh };
+        let accel = Accel { frame, tris: ordered.collect(), prim_to_tri, bvh };
         debug_assert!(accel.validate(mesh));
         accel
     }
@@ -89,7 +127,7 @@ impl Accel {
                 return false;
             }
             seen[t] = true;
-            let c = mesh.corners(tri);
+            let c = mesh.corners(tri).map(|p| self.frame.point(p));
             if (0..3).any(|k| Vec3::from(self.tris[prim][k]) != c[k]) {
                 return false;
             }

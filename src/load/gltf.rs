@@ -1,10 +1,820 @@
-//! glTF 2.0 loader (stub, replaced by the full loader).
+//! glTF 2.0 loader: `.gltf` (external files or embedded `data:` URIs) and `.glb` → [`SceneDesc`].
+//!
+//! The default scene (else scene 0, else every root node) is walked depth-first, composing node
+//! transforms to world space. Each triangle primitive becomes one [`MeshDesc`] (positions,
+//! normals by the inverse transpose, `TEXCOORD_0`); a node with a negative-determinant transform
+//! has its winding reversed so that counter-clockwise still means front. The first perspective
+//! camera met becomes the scene camera (eye = node origin, looking down the node's −z, up = +y);
+//! `KHR_lights_punctual` point and spot lights become [`PunctualDesc`]s.
+//!
+//! # Materials
+//!
+//! glTF's metallic-roughness model is mapped onto mirage's four scattering models:
+//!
+//! | glTF material                                          | mirage                                   |
+//! |--------------------------------------------------------|------------------------------------------|
+//! | `KHR_materials_transmission` factor > 0                | `Dielectric { ior }` (`KHR_materials_ior`, default 1.5), tint = base colour |
+//! | metallic ≥ 0.9 and roughness ≤ 0.05                    | `Mirror`, reflectance = base colour      |
+//! | roughness ≥ 0.95 (includes the default 1, 1)           | `Diffuse`, albedo = base colour          |
+//! | otherwise                                              | `Glossy`: n = 2/r⁴ − 2, k_s = 0.04·(1 − m) + base·m, k_d = base·(1 − m), both scaled so k_d + k_s ≤ 1 per channel |
+//!
+//! (r = roughness, m = metallic; the exponent follows Walter et al. 2007 §5.2's Phong/Beckmann
+//! correspondence with α = r².) Scene generators write the inverse: a diffuse surface is
+//! metallic 0 / roughness 1, a mirror metallic 1 / roughness 0. Emission is `emissiveFactor` ×
+//! `KHR_materials_emissive_strength`; `baseColorTexture` and `emissiveTexture` are decoded from
+//! sRGB to linear, only when a material that a primitive uses refers to them.
+//! `metallicRoughnessTexture`, normal and occlusion maps, alpha and other unsupported features
+//! are reported as warnings, one line per place.
+//!
+//! # Robustness
+//!
+//! Malformed input must give a [`LoadError`], never a panic. The `gltf` crate's accessor
+//! iterators and some of its accessors (`Camera::projection`, `Image::source`) can panic or
+//! overflow on inconsistent files that pass its validation, so this module reads accessors with
+//! its own bounds-checked reader and reads cameras and images from the raw JSON. Buffers are
+//! loaded here (rather than with `gltf::import_buffers`) so that a missing file is named and a
+//! malformed relative URI cannot reach the crate's `unwrap`; `data:` URIs are still decoded by
+//! `gltf::buffer::Data`. `extensionsRequired` is checked before the crate's validation (which
+//! would reject unknown ones with a terse "Unsupported extension") so the message names the
+//! extension.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
-use super::{LoadError, LoadErrorKind, SceneDesc};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use gltf::Document;
+use gltf::accessor::{DataType, Dimensions};
+use gltf::json::validation::Checked;
+use gltf::mesh::{Mode, Semantic};
+
+use super::desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc, TextureDesc};
+use super::error::{LoadError, LoadErrorKind};
+use crate::color::srgb_to_linear;
+
+/// Extensions this loader interprets; `extensionsRequired` may only name these.
+pub const IMPLEMENTED_EXTENSIONS: [&str; 4] = [
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_transmission",
+];
+
+/// Albedo of the material given to primitives without one.
+const DEFAULT_ALBEDO: f32 = 0.8;
+
+/// Most elements an accessor without a buffer view (all zeros) may declare.
+const MAX_ZERO_ACCESSOR_COUNT: usize = 1 << 24;
 
 /// Reads a `.gltf` or `.glb` file.
 pub fn load_gltf(path: &Path) -> Result<SceneDesc, LoadError> {
-    Err(LoadError::new(path, LoadErrorKind::Unsupported, "glTF loading is not implemented yet"))
+    let bytes = std::fs::read(path).map_err(|e| LoadError::io(path, e))?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let (doc, blob, warnings) = parse(path, &bytes)?;
+    let mut loader = Loader {
+        path,
+        base: &base,
+        doc: &doc,
+        buffers: Vec::new(),
+        desc: SceneDesc { path: path.to_path_buf(), warnings, ..SceneDesc::default() },
+        materials: HashMap::new(),
+        textures: HashMap::new(),
+        default_material: None,
+        camera_node: None,
+    };
+    loader.buffers = loader.load_buffers(blob)?;
+    loader.report_ignored_features();
+    loader.walk()?;
+    Ok(loader.desc)
+}
+
+/// Parses and validates the document; returns it with the `.glb` binary chunk and warnings.
+fn parse(path: &Path, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>, Vec<String>), LoadError> {
+    if bytes.starts_with(b"glTF") {
+        check_glb_header(path, bytes)?;
+    }
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| translate(path, e))?;
+    let gltf::Gltf { document, blob } = gltf;
+    let mut root = document.into_json();
+    for ext in &root.extensions_required {
+        if !IMPLEMENTED_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(LoadError::new(
+                path,
+                LoadErrorKind::Unsupported,
+                format!("requires unsupported extension '{ext}' (mirage implements {})", IMPLEMENTED_EXTENSIONS.join(", ")),
+            ));
+        }
+    }
+    let mut warnings: Vec<String> = root
+        .extensions_used
+        .iter()
+        .filter(|e| !IMPLEMENTED_EXTENSIONS.contains(&e.as_str()))
+        .map(|e| format!("{}: extension '{e}' is not supported and is ignored", path.display()))
+        .collect();
+    // Application-specific attributes ("_BATCHID") parse as invalid semantics without the gltf
+    // crate's `extras` feature; drop them before validation instead of rejecting the file.
+    for (m, mesh) in root.meshes.iter_mut().enumerate() {
+        for (p, prim) in mesh.primitives.iter_mut().enumerate() {
+            if prim.attributes.remove(&Checked::Invalid).is_some() {
+                warnings.push(format!("mesh {m}, primitive {p}: unrecognised vertex attribute(s) ignored"));
+            }
+        }
+    }
+    let doc = Document::from_json(root).map_err(|e| translate(path, e))?;
+    Ok((doc, blob, warnings))
+}
+
+/// Checks the 12-byte `.glb` header so that a truncated file gets a clear message.
+fn check_glb_header(path: &Path, bytes: &[u8]) -> Result<(), LoadError> {
+    let malformed = |m: String| LoadError::new(path, LoadErrorKind::Malformed, m);
+    let word = |i: usize| bytes.get(i..i + 4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes);
+    let (Some(version), Some(length)) = (word(4), word(8)) else {
+        return Err(malformed(format!("truncated .glb: only {} bytes, shorter than the 12-byte header", bytes.len())));
+    };
+    if version != 2 {
+        return Err(LoadError::new(path, LoadErrorKind::Unsupported, format!("binary glTF version {version} (mirage reads 2)")));
+    }
+    if (length as usize) < 12 {
+        return Err(malformed(format!("corrupt .glb header: declared length {length} is shorter than the header")));
+    }
+    if length as usize > bytes.len() {
+        return Err(malformed(format!("truncated .glb: the header declares {length} bytes but the file has {}", bytes.len())));
+    }
+    Ok(())
+}
+
+/// The gltf crate's error as one readable sentence.
+fn translate(path: &Path, err: gltf::Error) -> LoadError {
+    let malformed = |m: String| LoadError::new(path, LoadErrorKind::Malformed, m);
+    match err {
+        gltf::Error::Io(e) => LoadError::io(path, e),
+        gltf::Error::Binary(e) => malformed(format!("corrupt .glb: {e}")),
+        gltf::Error::Deserialize(e) => {
+            let text = e.to_string();
+            let what = text.split(" at line ").next().unwrap_or(&text);
+            let message = match e.classify() {
+                serde_json::error::Category::Data => format!("not a valid glTF document: {what}"),
+                _ => format!("broken JSON: {what}"),
+            };
+            malformed(message).at(format!("line {}, column {}", e.line(), e.column()))
+        }
+        gltf::Error::Validation(errors) => {
+            let unsupported = errors.iter().any(|(_, e)| *e == gltf::json::validation::Error::Unsupported);
+            let described: Vec<String> =
+                errors.iter().take(3).map(|(p, e)| format!("{}: {}", p.as_str(), e.to_string().to_lowercase())).collect();
+            let more = if errors.len() > 3 { format!(" (and {} more)", errors.len() - 3) } else { String::new() };
+            let kind = if unsupported { LoadErrorKind::Unsupported } else { LoadErrorKind::Malformed };
+            LoadError::new(path, kind, format!("invalid glTF: {}{more}", described.join("; ")))
+        }
+        other => malformed(other.to_string()),
+    }
+}
+
+/// Decodes a PNG or JPEG image and converts its sRGB-encoded texels to linear RGB.
+pub fn decode_srgb_texture(bytes: &[u8]) -> Result<TextureDesc, String> {
+    let img = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+    let (width, height) = (img.width(), img.height());
+    let texels: Vec<Vec3> = if img.color().bytes_per_pixel() / img.color().channel_count().max(1) == 1 {
+        let lut: Vec<f32> = (0..=255).map(|v| srgb_to_linear(v as f32 / 255.0)).collect();
+        img.to_rgb8().pixels().map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize])).collect()
+    } else {
+        img.to_rgb32f().pixels().map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2]))).collect()
+    };
+    if texels.is_empty() || texels.len() as u64 != width as u64 * height as u64 {
+        return Err(format!("image has no texels ({width}×{height})"));
+    }
+    Ok(TextureDesc { width, height, texels })
+}
+
+/// The scatter model and diffuse colour for a glTF metallic-roughness material (module doc).
+fn scatter_from_metallic_roughness(base: Vec3, metallic: f32, roughness: f32) -> (Vec3, ScatterDesc) {
+    let m = if metallic.is_finite() { metallic.clamp(0.0, 1.0) } else { 0.0 };
+    let r = if roughness.is_finite() { roughness.clamp(0.0, 1.0) } else { 1.0 };
+    if m >= 0.9 && r <= 0.05 {
+        return (base, ScatterDesc::Mirror);
+    }
+    if r >= 0.95 {
+        return (base, ScatterDesc::Diffuse);
+    }
+    // α = r²; Phong n = 2/α² − 2 (clamped where r → 0 makes it unbounded).
+    let exponent = if r > 0.0 { (2.0 / r.powi(4) - 2.0).min(1e5) } else { 1e5 };
+    let mut kd = base * (1.0 - m);
+    let mut ks = Vec3::splat(0.04 * (1.0 - m)) + base * m;
+    let sum = kd + ks;
+    let scale = Vec3::select(sum.cmpgt(Vec3::ONE), Vec3::ONE / sum, Vec3::ONE);
+    kd *= scale;
+    ks *= scale;
+    (kd, ScatterDesc::Glossy { specular: ks, exponent })
+}
+
+/// `%XX`-decodes a relative URI; `None` when the result is not UTF-8 or an escape is broken.
+fn percent_decode(uri: &str) -> Option<String> {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        if b == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(b);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+/// Loader state while walking one document.
+struct Loader<'a> {
+    path: &'a Path,
+    base: &'a Path,
+    doc: &'a Document,
+    buffers: Vec<Vec<u8>>,
+    desc: SceneDesc,
+    /// glTF material index → index in `desc.materials`.
+    materials: HashMap<usize, usize>,
+    /// glTF image index → index in `desc.textures`.
+    textures: HashMap<usize, usize>,
+    default_material: Option<usize>,
+    /// The node whose camera was taken.
+    camera_node: Option<usize>,
+}
+
+impl Loader<'_> {
+    fn error(&self, kind: LoadErrorKind, message: impl Into<String>) -> LoadError {
+        LoadError::new(self.path, kind, message)
+    }
+
+    fn warn(&mut self, place: &str, what: impl std::fmt::Display) {
+        self.desc.warnings.push(format!("{}: {place}: {what}", self.path.display()));
+    }
+
+    /// Reads the bytes a URI refers to: a `data:` URI or a file relative to the glTF.
+    fn read_uri(&self, uri: &str) -> Result<Vec<u8>, LoadError> {
+        if uri.starts_with("data:") {
+            return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), None).map(|d| d.0).map_err(|e| {
+                self.error(LoadErrorKind::Malformed, format!("data URI cannot be decoded ({})", translate(self.path, e).message))
+            });
+        }
+        let file = if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+            PathBuf::from(percent_decode(rest).unwrap_or_else(|| rest.to_string()))
+        } else if uri.contains(':') {
+            let scheme = uri.split(':').next().unwrap_or_default();
+            return Err(self.error(
+                LoadErrorKind::Unsupported,
+                format!("URI scheme '{scheme}:' is not supported (use a relative file or a data: URI)"),
+            ));
+        } else {
+            let Some(relative) = percent_decode(uri) else {
+                return Err(self.error(LoadErrorKind::Malformed, format!("URI '{uri}' has a broken %-escape")));
+            };
+            self.base.join(relative)
+        };
+        std::fs::read(&file).map_err(|e| {
+            let reason = if e.kind() == std::io::ErrorKind::NotFound { "file not found".to_string() } else { e.to_string() };
+            let message = format!("cannot read '{}': {reason}", file.display());
+            LoadError { path: self.path.to_path_buf(), location: None, kind: LoadErrorKind::Io(e), message }
+        })
+    }
+
+    fn load_buffers(&self, mut blob: Option<Vec<u8>>) -> Result<Vec<Vec<u8>>, LoadError> {
+        let mut buffers = Vec::new();
+        for buffer in self.doc.buffers() {
+            let place = format!("buffer {}", buffer.index());
+            let data = match buffer.source() {
+                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                    self.error(LoadErrorKind::Malformed, "refers to the .glb binary chunk, but there is none")
+                        .at(place.clone())
+                })?,
+                gltf::buffer::Source::Uri(uri) => self.read_uri(uri).map_err(|e| e.at(place.clone()))?,
+            };
+            if data.len() < buffer.length() {
+                return Err(self
+                    .error(
+                        LoadErrorKind::Malformed,
+                        format!("has {} bytes but declares byteLength {}", data.len(), buffer.length()),
+                    )
+                    .at(place));
+            }
+            buffers.push(data);
+        }
+        Ok(buffers)
+    }
+
+    fn report_ignored_features(&mut self) {
+        let animations = self.doc.animations().count();
+        if animations > 0 {
+            self.warn("animations", format!("{animations} animation(s) ignored (the scene is static)"));
+        }
+    }
+
+    /// Walks the default scene's node hierarchy depth-first (iteratively: chains may be deep).
+    fn walk(&mut self) -> Result<(), LoadError> {
+        let doc = self.doc;
+        let nodes: Vec<gltf::Node> = doc.nodes().collect();
+        let roots: Vec<usize> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+            Some(scene) => scene.nodes().map(|n| n.index()).collect(),
+            None => {
+                let mut is_child = vec![false; nodes.len()];
+                for child in nodes.iter().flat_map(|n| n.children()) {
+                    if let Some(c) = is_child.get_mut(child.index()) {
+                        *c = true;
+                    }
+                }
+                (0..nodes.len()).filter(|&i| !is_child[i]).collect()
+            }
+        };
+        let mut visited = vec![false; nodes.len()];
+        let mut stack: Vec<(usize, Mat4)> = roots.iter().rev().map(|&i| (i, Mat4::IDENTITY)).collect();
+        while let Some((index, parent)) = stack.pop() {
+            let Some(node) = nodes.get(index) else { continue };
+            match visited.get_mut(index) {
+                Some(true) => {
+                    self.warn(&format!("node {index}"), "has more than one parent or is part of a cycle; visited once only");
+                    continue;
+                }
+                Some(v) => *v = true,
+                None => continue,
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.visit(node, &world)?;
+            let children: Vec<usize> = node.children().map(|c| c.index()).collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        Ok(())
+    }
+
+    fn visit(&mut self, node: &gltf::Node, world: &Mat4) -> Result<(), LoadError> {
+        let place = format!("node {}", node.index());
+        if node.skin().is_some() {
+            self.warn(&place, "skin ignored (the mesh is used in its bind pose)");
+        }
+        if let Some(camera) = node.camera() {
+            self.camera(node.index(), camera.index(), world);
+        }
+        if let Some(light) = node.light() {
+            self.light(&place, &light, world);
+        }
+        if let Some(mesh) = node.mesh() {
+            for (p, prim) in mesh.primitives().enumerate() {
+                let origin = Origin::Gltf { node: node.index(), mesh: mesh.index(), primitive: p };
+                self.primitive(origin, &prim, world)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Takes the first perspective camera; reports the others.
+    fn camera(&mut self, node: usize, index: usize, world: &Mat4) {
+        let place = format!("node {node}, camera {index}");
+        let Some(json) = self.doc.as_json().cameras.get(index) else { return };
+        let perspective = match (&json.type_, json.perspective.as_ref()) {
+            (Checked::Valid(gltf::json::camera::Type::Perspective), Some(p)) => p,
+            (Checked::Valid(gltf::json::camera::Type::Perspective), None) => {
+                return self.warn(&place, "perspective camera without parameters ignored");
+            }
+            _ => return self.warn(&place, "orthographic camera ignored (mirage renders perspective cameras only)"),
+        };
+        if let Some(first) = self.camera_node {
+            return self.warn(&place, format!("ignored: the first camera (node {first}) is used"));
+        }
+        let eye = world.w_axis.truncate();
+        let forward = (-world.z_axis.truncate()).normalize_or_zero();
+        let up = world.y_axis.truncate().normalize_or_zero();
+        if !eye.is_finite() || forward == Vec3::ZERO || up == Vec3::ZERO {
+            return self.warn(&place, "camera node transform is degenerate; camera ignored");
+        }
+        self.camera_node = Some(node);
+        self.desc.camera = Some(CameraDesc {
+            eye,
+            target: eye + forward,
+            up,
+            fov_y_deg: perspective.yfov.to_degrees(),
+            aspect: perspective.aspect_ratio,
+            width: None,
+            height: None,
+        });
+    }
+
+    fn light(&mut self, place: &str, light: &gltf::khr_lights_punctual::Light, world: &Mat4) {
+        let place = format!("{place}, light {}", light.index());
+        if light.range().is_some() {
+            self.warn(&place, "range ignored (lights fall off with the inverse square law)");
+        }
+        let position = world.w_axis.truncate();
+        let intensity = Vec3::from_array(light.color()) * light.intensity();
+        match light.kind() {
+            gltf::khr_lights_punctual::Kind::Directional => {
+                self.warn(&place, "directional light ignored (not supported)");
+            }
+            gltf::khr_lights_punctual::Kind::Point => self.desc.lights.push(PunctualDesc::Point { position, intensity }),
+            gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                self.desc.lights.push(PunctualDesc::Spot {
+                    position,
+                    direction: (-world.z_axis.truncate()).normalize_or_zero(),
+                    intensity,
+                    inner_cone: inner_cone_angle,
+                    outer_cone: outer_cone_angle,
+                })
+            }
+        }
+    }
+
+    fn primitive(&mut self, origin: Origin, prim: &gltf::Primitive, world: &Mat4) -> Result<(), LoadError> {
+        let place = origin.to_string();
+        let at = |e: LoadError| e.at(place.clone());
+        if prim.mode() != Mode::Triangles {
+            self.warn(&place, format!("mode {:?} skipped (only triangles are rendered)", prim.mode()));
+            return Ok(());
+        }
+        if prim.morph_targets().next().is_some() {
+            self.warn(&place, "morph targets ignored");
+        }
+        let Some(pos_accessor) = prim.get(&Semantic::Positions) else {
+            return Err(at(self.error(LoadErrorKind::Malformed, "has no POSITION attribute")));
+        };
+        let local = self.read_vec3(&pos_accessor).map_err(at)?;
+        if let Some(k) = local.iter().position(|p| !p.is_finite()) {
+            return Err(at(self.error(LoadErrorKind::Invalid, format!("vertex {k} has a non-finite position"))));
+        }
+        let positions: Vec<Vec3> = local.iter().map(|&p| world.transform_point3(p)).collect();
+        let n = positions.len();
+        let Ok(n32) = u32::try_from(n) else {
+            return Err(at(self.error(LoadErrorKind::Unsupported, format!("{n} vertices exceed the 32-bit index range"))));
+        };
+
+        let mut normals = Vec::new();
+        if let Some(acc) = prim.get(&Semantic::Normals) {
+            let local = self.read_vec3(&acc).map_err(at)?;
+            let linear = Mat3::from_mat4(*world);
+            let det = linear.determinant();
+            if local.len() != n {
+                self.warn(&place, format!("{} normals for {n} positions; normals ignored", local.len()));
+            } else if det != 0.0 && det.is_finite() {
+                let normal_from_local = linear.inverse().transpose();
+                normals = local.iter().map(|&v| (normal_from_local * v).normalize_or_zero()).collect();
+            }
+        }
+        let mut uvs = Vec::new();
+        if let Some(acc) = prim.get(&Semantic::TexCoords(0)) {
+            let read = self.read_floats(&acc, Dimensions::Vec2).map_err(at)?;
+            if read.len() != 2 * n {
+                self.warn(&place, format!("{} texture coordinates for {n} positions; ignored", read.len() / 2));
+            } else {
+                uvs = read.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect();
+            }
+        }
+
+        let mut indices = match prim.indices() {
+            Some(acc) => {
+                let indices = self.read_indices(&acc).map_err(at)?;
+                if let Some((k, &i)) = indices.iter().enumerate().find(|&(_, &i)| i >= n32) {
+                    let message = format!("index {k} (accessor {}) is {i}, but there are only {n} vertices", acc.index());
+                    return Err(at(self.error(LoadErrorKind::Invalid, message)));
+                }
+                indices
+            }
+            None => (0..n32).collect(),
+        };
+        if indices.len() % 3 != 0 {
+            self.warn(&place, format!("{} indices is not a multiple of 3; the last {} dropped", indices.len(), indices.len() % 3));
+            indices.truncate(indices.len() - indices.len() % 3);
+        }
+        if world.determinant() < 0.0 {
+            // A mirroring transform turns counter-clockwise into clockwise; swap to keep the front.
+            for t in indices.chunks_exact_mut(3) {
+                t.swap(1, 2);
+            }
+        }
+        let material = match prim.material().index() {
+            Some(m) => self.material(m)?,
+            None => self.default_material(),
+        };
+        self.desc.meshes.push(MeshDesc { origin, positions, normals, uvs, indices, material });
+        Ok(())
+    }
+
+    fn default_material(&mut self) -> usize {
+        *self.default_material.get_or_insert_with(|| {
+            self.desc.materials.push(MaterialDesc::diffuse("default (no material)", Vec3::splat(DEFAULT_ALBEDO)));
+            self.desc.materials.len() - 1
+        })
+    }
+
+    /// Converts glTF material `index` (once) and returns its index in `desc.materials`.
+    fn material(&mut self, index: usize) -> Result<usize, LoadError> {
+        if let Some(&m) = self.materials.get(&index) {
+            return Ok(m);
+        }
+        let doc = self.doc;
+        let Some(mat) = doc.materials().nth(index) else {
+            return Err(self.error(LoadErrorKind::Malformed, format!("material {index} does not exist")));
+        };
+        let name = mat.name().map(str::to_string).unwrap_or_else(|| format!("material {index}"));
+        let place = match mat.name() {
+            Some(n) => format!("material {index} '{n}'"),
+            None => format!("material {index}"),
+        };
+        let pbr = mat.pbr_metallic_roughness();
+        let factor = pbr.base_color_factor();
+        let base = Vec3::new(factor[0], factor[1], factor[2]);
+        let transmission = mat.transmission().map_or(0.0, |t| t.transmission_factor());
+        let (base_color, scatter) = if transmission > 0.0 {
+            (base, ScatterDesc::Dielectric { ior: mat.ior().unwrap_or(1.5) })
+        } else {
+            scatter_from_metallic_roughness(base, pbr.metallic_factor(), pbr.roughness_factor())
+        };
+        let emission = Vec3::from_array(mat.emissive_factor()) * mat.emissive_strength().unwrap_or(1.0);
+
+        let mut ignored = Vec::new();
+        if pbr.metallic_roughness_texture().is_some() {
+            ignored.push("metallicRoughnessTexture");
+        }
+        if mat.normal_texture().is_some() {
+            ignored.push("normalTexture");
+        }
+        if mat.occlusion_texture().is_some() {
+            ignored.push("occlusionTexture");
+        }
+        if mat.transmission().is_some_and(|t| t.transmission_texture().is_some()) {
+            ignored.push("transmissionTexture");
+        }
+        if mat.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            ignored.push("alphaMode (rendered opaque)");
+        }
+        if !ignored.is_empty() {
+            self.warn(&place, format!("{} ignored", ignored.join(", ")));
+        }
+
+        let base_color_texture = match pbr.base_color_texture() {
+            Some(info) => Some(self.texture(&place, &info)?),
+            None => None,
+        };
+        let emission_texture = match mat.emissive_texture() {
+            Some(info) => Some(self.texture(&place, &info)?),
+            None => None,
+        };
+        self.desc.materials.push(MaterialDesc {
+            name,
+            base_color,
+            base_color_texture,
+            scatter,
+            emission,
+            emission_texture,
+            double_sided: mat.double_sided(),
+        });
+        let m = self.desc.materials.len() - 1;
+        self.materials.insert(index, m);
+        Ok(m)
+    }
+
+    /// Decodes the image of a texture reference (once per image) and returns its index.
+    fn texture(&mut self, place: &str, info: &gltf::texture::Info) -> Result<usize, LoadError> {
+        if info.tex_coord() != 0 {
+            self.warn(place, format!("texture uses TEXCOORD_{}; mirage reads TEXCOORD_0", info.tex_coord()));
+        }
+        let image = info.texture().source().index();
+        if let Some(&t) = self.textures.get(&image) {
+            return Ok(t);
+        }
+        let image_place = format!("{place}, image {image}");
+        let Some(json) = self.doc.as_json().images.get(image) else {
+            return Err(self.error(LoadErrorKind::Malformed, "image does not exist").at(image_place));
+        };
+        let bytes = match (&json.buffer_view, &json.uri) {
+            (Some(view), _) => {
+                let view = view.value();
+                self.view_bytes(view).map_err(|e| e.at(image_place.clone()))?.to_vec()
+            }
+            (None, Some(uri)) => self.read_uri(uri).map_err(|e| e.at(image_place.clone()))?,
+            (None, None) => {
+                return Err(self.error(LoadErrorKind::Malformed, "has neither a uri nor a bufferView").at(image_place));
+            }
+        };
+        let texture = decode_srgb_texture(&bytes).map_err(|e| {
+            self.error(LoadErrorKind::Malformed, format!("cannot decode the image: {e}")).at(image_place.clone())
+        })?;
+        self.desc.textures.push(texture);
+        let t = self.desc.textures.len() - 1;
+        self.textures.insert(image, t);
+        Ok(t)
+    }
+
+    /// The bytes of buffer view `index`, bounds-checked.
+    fn view_bytes(&self, index: usize) -> Result<&[u8], LoadError> {
+        let view = self.doc.views().nth(index);
+        let slice = view.as_ref().and_then(|v| {
+            let data = self.buffers.get(v.buffer().index())?;
+            data.get(v.offset()..v.offset().checked_add(v.length())?)
+        });
+        slice.ok_or_else(|| {
+            self.error(LoadErrorKind::Malformed, format!("buffer view {index} lies outside its buffer"))
+                .at(format!("buffer view {index}"))
+        })
+    }
+
+    fn read_vec3(&self, accessor: &gltf::Accessor) -> Result<Vec<Vec3>, LoadError> {
+        let flat = self.read_floats(accessor, Dimensions::Vec3)?;
+        Ok(flat.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+    }
+
+    /// Reads a float accessor (or normalised integers) of the given shape as a flat list.
+    fn read_floats(&self, accessor: &gltf::Accessor, dims: Dimensions) -> Result<Vec<f32>, LoadError> {
+        let ty = accessor.data_type();
+        let float_ok = ty == DataType::F32 || (accessor.normalized() && dims == Dimensions::Vec2);
+        if accessor.dimensions() != dims || !float_ok {
+            let message = format!(
+                "has type {:?} of {:?}{}; expected {dims:?} of F32",
+                accessor.dimensions(),
+                ty,
+                if accessor.normalized() { " (normalized)" } else { "" }
+            );
+            return Err(self.error(LoadErrorKind::Unsupported, message).at(format!("accessor {}", accessor.index())));
+        }
+        let normalized = accessor.normalized();
+        self.read_accessor(accessor, |b| decode_float(b, ty, normalized))
+    }
+
+    fn read_indices(&self, accessor: &gltf::Accessor) -> Result<Vec<u32>, LoadError> {
+        let ty = accessor.data_type();
+        if accessor.dimensions() != Dimensions::Scalar || !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32) {
+            let message = format!("indices have type {:?} of {ty:?}; expected an unsigned scalar", accessor.dimensions());
+            return Err(self.error(LoadErrorKind::Malformed, message).at(format!("accessor {}", accessor.index())));
+        }
+        self.read_accessor(accessor, |b| decode_uint(b, ty))
+    }
+
+    /// Reads every component of `accessor` (dense part, then sparse substitutions) with
+    /// `decode`, which is given exactly one component's bytes. All ranges are checked first.
+    fn read_accessor<T: Copy + Default>(
+        &self,
+        accessor: &gltf::Accessor,
+        decode: impl Fn(&[u8]) -> T,
+    ) -> Result<Vec<T>, LoadError> {
+        let place = format!("accessor {}", accessor.index());
+        let malformed = |m: String| self.error(LoadErrorKind::Malformed, m).at(place.clone());
+        let count = accessor.count();
+        let comps = accessor.dimensions().multiplicity();
+        let comp_size = accessor.data_type().size();
+        let elem_size = comps * comp_size;
+        let mut out = match accessor.view() {
+            Some(view) => {
+                let bytes = self.view_bytes(view.index()).map_err(|e| e.at(place.clone()))?;
+                let stride = view.stride().unwrap_or(elem_size);
+                let strided = Strided { bytes, offset: accessor.offset(), stride, count, elem_size };
+                strided.check().map_err(|what| malformed(format!("{what}: buffer too short for this accessor")))?;
+                strided.read(comps, comp_size, &decode)
+            }
+            None => {
+                if count > MAX_ZERO_ACCESSOR_COUNT {
+                    return Err(malformed(format!("declares {count} elements without any data")));
+                }
+                vec![T::default(); count * comps]
+            }
+        };
+        if let Some(sparse) = accessor.sparse() {
+            let k = sparse.count();
+            let idx = sparse.indices();
+            let idx_ty = match idx.index_type() {
+                gltf::accessor::sparse::IndexType::U8 => DataType::U8,
+                gltf::accessor::sparse::IndexType::U16 => DataType::U16,
+                gltf::accessor::sparse::IndexType::U32 => DataType::U32,
+            };
+            let idx_bytes = self.view_bytes(idx.view().index()).map_err(|e| e.at(place.clone()))?;
+            let idx_size = idx_ty.size();
+            let targets = Strided { bytes: idx_bytes, offset: idx.offset(), stride: idx_size, count: k, elem_size: idx_size };
+            targets.check().map_err(|what| malformed(format!("sparse indices: {what}")))?;
+            let targets = targets.read(1, idx_size, &|b| decode_uint(b, idx_ty));
+            let val_bytes = self.view_bytes(sparse.values().view().index()).map_err(|e| e.at(place.clone()))?;
+            let values =
+                Strided { bytes: val_bytes, offset: sparse.values().offset(), stride: elem_size, count: k, elem_size };
+            values.check().map_err(|what| malformed(format!("sparse values: {what}")))?;
+            let values = values.read(comps, comp_size, &decode);
+            for (j, &target) in targets.iter().enumerate() {
+                let t = target as usize;
+                let (Some(dst), Some(src)) = (out.get_mut(t * comps..(t + 1) * comps), values.get(j * comps..(j + 1) * comps))
+                else {
+                    return Err(malformed(format!("sparse index {target} is outside the {count} elements")));
+                };
+                dst.copy_from_slice(src);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// `count` elements of `elem_size` bytes, `stride` apart from `offset` in `bytes`.
+struct Strided<'b> {
+    bytes: &'b [u8],
+    offset: usize,
+    stride: usize,
+    count: usize,
+    elem_size: usize,
+}
+
+impl Strided<'_> {
+    /// Checks that every element lies inside `bytes`; the error says why not.
+    fn check(&self) -> Result<(), String> {
+        if self.stride < self.elem_size {
+            return Err(format!("byte stride {} is smaller than the element size {}", self.stride, self.elem_size));
+        }
+        if self.count == 0 {
+            return Ok(());
+        }
+        let end = (self.count - 1)
+            .checked_mul(self.stride)
+            .and_then(|s| s.checked_add(self.offset))
+            .and_then(|s| s.checked_add(self.elem_size));
+        match end {
+            Some(end) if end <= self.bytes.len() => Ok(()),
+            _ => Err(format!("{} elements from byte {} need more than the view's {} bytes", self.count, self.offset, self.bytes.len())),
+        }
+    }
+
+    /// Decodes all components; only call after [`Strided::check`] succeeded.
+    fn read<T>(&self, comps: usize, comp_size: usize, decode: &impl Fn(&[u8]) -> T) -> Vec<T> {
+        let mut out = Vec::with_capacity(self.count * comps);
+        for i in 0..self.count {
+            let start = self.offset + i * self.stride;
+            for c in 0..comps {
+                let at = start + c * comp_size;
+                if let Some(b) = self.bytes.get(at..at + comp_size) {
+                    out.push(decode(b));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// One little-endian component as `f32` (normalised integers mapped to [0, 1] or [−1, 1]).
+fn decode_float(b: &[u8], ty: DataType, normalized: bool) -> f32 {
+    let (value, max) = match (ty, b) {
+        (DataType::F32, [x, y, z, w, ..]) => return f32::from_le_bytes([*x, *y, *z, *w]),
+        (DataType::U8, [x, ..]) => (*x as f32, 255.0),
+        (DataType::I8, [x, ..]) => (*x as i8 as f32, 127.0),
+        (DataType::U16, [x, y, ..]) => (u16::from_le_bytes([*x, *y]) as f32, 65535.0),
+        (DataType::I16, [x, y, ..]) => (i16::from_le_bytes([*x, *y]) as f32, 32767.0),
+        (DataType::U32, [x, y, z, w, ..]) => (u32::from_le_bytes([*x, *y, *z, *w]) as f32, u32::MAX as f32),
+        _ => return 0.0,
+    };
+    if normalized { (value / max).max(-1.0) } else { value }
+}
+
+/// One little-endian unsigned component as `u32`.
+fn decode_uint(b: &[u8], ty: DataType) -> u32 {
+    match (ty, b) {
+        (DataType::U8, [x, ..]) => *x as u32,
+        (DataType::U16, [x, y, ..]) => u16::from_le_bytes([*x, *y]) as u32,
+        (DataType::U32, [x, y, z, w, ..]) => u32::from_le_bytes([*x, *y, *z, *w]),
+        _ => 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_and_extreme_metallic_roughness_map_to_diffuse_and_mirror() {
+        let base = Vec3::new(0.5, 0.4, 0.3);
+        assert_eq!(scatter_from_metallic_roughness(base, 1.0, 1.0), (base, ScatterDesc::Diffuse));
+        assert_eq!(scatter_from_metallic_roughness(base, 0.0, 1.0), (base, ScatterDesc::Diffuse));
+        assert_eq!(scatter_from_metallic_roughness(base, 1.0, 0.0), (base, ScatterDesc::Mirror));
+    }
+
+    #[test]
+    fn glossy_mapping_uses_walter_exponent_and_conserves_energy() {
+        let (kd, scatter) = scatter_from_metallic_roughness(Vec3::new(0.9, 0.5, 0.1), 0.0, 0.5);
+        let ScatterDesc::Glossy { specular, exponent } = scatter else { panic!("{scatter:?}") };
+        assert!((exponent - 30.0).abs() < 1e-3, "{exponent}");
+        assert!((specular - Vec3::splat(0.04)).abs().max_element() < 1e-6);
+        assert!((kd - Vec3::new(0.9, 0.5, 0.1)).abs().max_element() < 1e-6);
+        let (kd, scatter) = scatter_from_metallic_roughness(Vec3::ONE, 0.5, 0.3);
+        let ScatterDesc::Glossy { specular, .. } = scatter else { panic!("{scatter:?}") };
+        assert!((kd + specular).max_element() <= 1.0 + 1e-6);
+    }
+
+    #[test]
+    fn percent_decoding_accepts_utf8_and_rejects_broken_escapes() {
+        assert_eq!(percent_decode("my%20scene.bin").as_deref(), Some("my scene.bin"));
+        assert_eq!(percent_decode("caf%C3%A9.png").as_deref(), Some("café.png"));
+        assert_eq!(percent_decode("bad%FF.bin"), None);
+        assert_eq!(percent_decode("bad%2"), None);
+    }
+
+    #[test]
+    fn glb_headers_that_are_short_or_lie_about_length_are_rejected() {
+        let p = Path::new("x.glb");
+        assert!(check_glb_header(p, b"glTF\x02\0\0").unwrap_err().message.contains("truncated"));
+        let mut h = b"glTF".to_vec();
+        h.extend(2u32.to_le_bytes());
+        h.extend(100u32.to_le_bytes());
+        assert!(check_glb_header(p, &h).unwrap_err().message.contains("declares 100 bytes"));
+        h[8..12].copy_from_slice(&4u32.to_le_bytes());
+        assert!(check_glb_header(p, &h).unwrap_err().message.contains("corrupt"));
+    }
 }
