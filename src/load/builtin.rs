@@ -370,7 +370,8 @@ pub fn ajar_door() -> SceneDesc {
     b.finish()
 }
 
-/// A corridor lit only by two side rooms (left light twice as bright as the right one);
+/// A corridor lit only by two side rooms (the left one, on the image's left, about three
+/// times as bright as the right one);
 /// neither light is visible from the camera.
 pub fn left_right() -> SceneDesc {
     let mut b = Builder::new("left-right");
@@ -401,15 +402,16 @@ pub fn left_right() -> SceneDesc {
     b.triangles("walls", wall, &walls);
     b.triangles("floors", floor, &floors);
     let y = h - 0.01;
+    // The camera looks along +z, so world +x is the image's left.
     b.triangles(
         "left light",
         left_light,
-        &quad(vec3(-3.6, y, 4.1), vec3(-2.8, y, 4.1), vec3(-2.8, y, 4.9), vec3(-3.6, y, 4.9)),
+        &quad(vec3(2.8, y, 4.1), vec3(3.6, y, 4.1), vec3(3.6, y, 4.9), vec3(2.8, y, 4.9)),
     );
     b.triangles(
         "right light",
         right_light,
-        &quad(vec3(2.8, y, 4.1), vec3(3.6, y, 4.1), vec3(3.6, y, 4.9), vec3(2.8, y, 4.9)),
+        &quad(vec3(-3.6, y, 4.1), vec3(-2.8, y, 4.1), vec3(-2.8, y, 4.9), vec3(-3.6, y, 4.9)),
     );
     b.camera(vec3(0.0, 1.5, 0.4), vec3(0.0, 0.9, 6.0), 55.0, 256, 192);
     b.finish()
@@ -431,26 +433,28 @@ pub fn direct_indirect() -> SceneDesc {
     b.triangles("bright wall", bright, &back);
     // Lamp at z = -1 near the ceiling, facing +z, inside a tube open towards +z.
     let (x0, x1, y0, y1, z0, z1) = (-0.3f32, 0.3f32, 2.2f32, 2.8f32, -1.2f32, 0.2f32);
-    let lamp_z = z0 + 0.05;
+    // The lamp fills only the upper part of the tube, so the camera cannot see it through the slot.
+    let (lamp_z, lamp_y0) = (z0 + 0.05, 2.4);
     b.triangles(
         "lamp",
         light,
         &quad(
-            vec3(x0 + 0.02, y0 + 0.02, lamp_z),
-            vec3(x1 - 0.02, y0 + 0.02, lamp_z),
+            vec3(x0 + 0.02, lamp_y0, lamp_z),
+            vec3(x1 - 0.02, lamp_y0, lamp_z),
             vec3(x1 - 0.02, y1 - 0.02, lamp_z),
             vec3(x0 + 0.02, y1 - 0.02, lamp_z),
         ),
     );
     let mut tube = Vec::new();
-    // Bottom of the tube with a small slot near the lamp; top, sides and closed back.
-    tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::X, Vec3::Z, x1 - x0, z1 - z0, &[[0.25, 0.2, 0.35, 0.28]]));
+    // Bottom of the tube with a 10 cm slot just in front of the lamp; top, sides, closed back.
+    tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::X, Vec3::Z, x1 - x0, z1 - z0, &[[0.25, 0.1, 0.35, 0.2]]));
     tube.extend(rect_with_holes(vec3(x0, y1, z0), Vec3::X, Vec3::Z, x1 - x0, z1 - z0, &[]));
     tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::Z, Vec3::Y, z1 - z0, y1 - y0, &[]));
     tube.extend(rect_with_holes(vec3(x1, y0, z0), Vec3::Z, Vec3::Y, z1 - z0, y1 - y0, &[]));
     tube.extend(rect_with_holes(vec3(x0, y0, z0), Vec3::X, Vec3::Y, x1 - x0, y1 - y0, &[]));
     b.triangles("shade", shade, &tube);
-    b.camera(vec3(0.0, 1.6, 2.0), vec3(0.0, 0.8, -3.0), 55.0, 256, 192);
+    // Low enough that the lamp cannot be seen through the open end of its tube.
+    b.camera(vec3(0.0, 1.2, 2.0), vec3(0.0, 0.5, -3.0), 55.0, 256, 192);
     b.finish()
 }
 
