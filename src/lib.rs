@@ -22,6 +22,7 @@ pub mod film;
 pub mod offline;
 pub mod options;
 pub mod output;
+pub mod path;
 pub mod render;
 
 pub mod load;

@@ -106,6 +106,21 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     };
     output::write_exr(&exr_path, &image, aov_refs)?;
     output::write_png(&png_path, &image, options.tonemap)?;
+    if let Some(st) = options.debug_strategy {
+        let (weighted, unweighted) = render::render_strategy(&scene, &accel, &options, st, &pb);
+        for (tag, o) in [("weighted", weighted), ("unweighted", unweighted)] {
+            let p = exr_path.with_file_name(format!(
+                "{}-s{}-t{}-{tag}.exr",
+                exr_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+                st.0,
+                st.1
+            ));
+            let img = o.film.image();
+            output::write_exr(&p, &img, Aovs::default())?;
+            output::write_png(&p.with_extension("png"), &img, options.tonemap)?;
+            println!("strategy s={} t={} {tag} → {}", st.0, st.1, p.display());
+        }
+    }
     let secs = out.elapsed.as_secs_f64().max(1e-9);
     println!(
         "{} {}: {}×{}, {} spp in {:.2} s (+{:.2} s setup), {:.2} Msamples/s, {:.2} Mrays/s{} → {}, {}",

@@ -19,6 +19,9 @@ use crate::scene::CameraSettings;
 pub enum Mode {
     /// Path tracing with next-event estimation and MIS: the reference.
     Pt,
+    /// Bidirectional path tracing: all (s, t) strategies with power-heuristic MIS and
+    /// light-tracing splats.
+    Bdpt,
 }
 
 impl Mode {
@@ -26,6 +29,7 @@ impl Mode {
     pub fn name(self) -> &'static str {
         match self {
             Mode::Pt => "pt",
+            Mode::Bdpt => "bdpt",
         }
     }
 }
@@ -143,6 +147,10 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// bdpt only: also write the weighted and the unweighted image of strategy "s,t" alone
+    /// (s light vertices, t camera vertices), for diagnosing MIS.
+    #[arg(long, value_parser = parse_strategy)]
+    pub debug_strategy: Option<(usize, usize)>,
     /// Do not show a progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -172,6 +180,8 @@ pub struct RenderOptions {
     pub offline: OfflineSettings,
     /// PNG tone mapping.
     pub tonemap: Tonemap,
+    /// bdpt: the strategy to write alone as well.
+    pub debug_strategy: Option<(usize, usize)>,
 }
 
 impl RenderArgs {
@@ -209,6 +219,17 @@ impl RenderArgs {
                 return Err(OptionsError(format!("{flag} {v} is outside 1…16384")));
             }
         }
+        if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
+            return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
+        }
+        if let Some((s, t)) = self.debug_strategy
+            && s + t - 2 > self.max_depth as usize
+        {
+            return Err(OptionsError(format!(
+                "--debug-strategy {s},{t} is longer than --max-depth {}",
+                self.max_depth
+            )));
+        }
         let filter = match self.filter {
             FilterArg::Box => FilterKind::Box,
             FilterArg::Tent => FilterKind::Tent,
@@ -225,7 +246,24 @@ impl RenderArgs {
             mode: self.mode,
             offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },
             tonemap,
+            debug_strategy: self.debug_strategy,
         })
+    }
+}
+
+/// Parses "s,t".
+pub fn parse_strategy(v: &str) -> Result<(usize, usize), String> {
+    let parts: Vec<&str> = v.split(',').collect();
+    match parts.as_slice() {
+        [s, t] => {
+            let s: usize = s.trim().parse().map_err(|e| format!("'{v}': {e}"))?;
+            let t: usize = t.trim().parse().map_err(|e| format!("'{v}': {e}"))?;
+            if t == 0 || s + t < 2 {
+                return Err(format!("'{v}': strategies need t ≥ 1 and s + t ≥ 2"));
+            }
+            Ok((s, t))
+        }
+        _ => Err(format!("'{v}' is not two integers s,t")),
     }
 }
 

@@ -10,6 +10,7 @@ use indicatif::ProgressBar;
 
 use crate::accel::Accel;
 use crate::load::{self, LoadError, builtin};
+use crate::offline::bdpt::{BdptOptions, StrategyFilter};
 use crate::offline::{self, RenderOutput};
 use crate::options::{Mode, RenderOptions};
 use crate::scene::{CameraSettings, Scene, SceneError};
@@ -29,7 +30,10 @@ impl SceneSource {
     pub fn from_arg(arg: Option<&str>) -> SceneSource {
         match arg {
             None => SceneSource::Builtin("cornell".into()),
-            Some(a) if builtin::NAMES.contains(&a) && !std::path::Path::new(a).exists() => {
+            Some(a)
+                if (builtin::NAMES.contains(&a) || builtin::BENCH_NAMES.contains(&a))
+                    && !std::path::Path::new(a).exists() =>
+            {
                 SceneSource::Builtin(a.into())
             }
             Some(a) => SceneSource::File(PathBuf::from(a)),
@@ -103,5 +107,28 @@ pub fn focus_at(scene: &mut Scene, accel: &Accel, at: Vec2) -> Result<(), Prepar
 pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &ProgressBar) -> RenderOutput {
     match options.mode {
         Mode::Pt => offline::render_pt(scene, accel, &options.offline, progress),
+        Mode::Bdpt => {
+            let opts = BdptOptions { max_depth: options.offline.max_depth, only: None, path_edges: None };
+            offline::render_bdpt(scene, accel, &options.offline, &opts, progress)
+        }
     }
+}
+
+/// Renders one BDPT strategy alone, weighted and unweighted (`--debug-strategy`).
+pub fn render_strategy(
+    scene: &Scene,
+    accel: &Accel,
+    options: &RenderOptions,
+    (s, t): (usize, usize),
+    progress: &ProgressBar,
+) -> (RenderOutput, RenderOutput) {
+    let run = |weighted| {
+        let opts = BdptOptions {
+            max_depth: options.offline.max_depth,
+            only: Some(StrategyFilter { s: Some(s), t: Some(t), weighted }),
+            path_edges: None,
+        };
+        offline::render_bdpt(scene, accel, &options.offline, &opts, progress)
+    };
+    (run(true), run(false))
 }

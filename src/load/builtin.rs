@@ -24,6 +24,7 @@ pub fn by_name(name: &str) -> Option<SceneDesc> {
         "direct-indirect" => direct_indirect(),
         "light-box" => light_box(),
         "glass-sphere" => glass_sphere(),
+        "sphere-field" => sphere_field(28),
         _ => return None,
     })
 }
@@ -485,5 +486,56 @@ pub fn light_box() -> SceneDesc {
     let y = 0.98;
     b.triangles("lamp", light, &quad(vec3(-0.2, y, -0.2), vec3(0.2, y, -0.2), vec3(0.2, y, 0.2), vec3(-0.2, y, 0.2)));
     b.camera(vec3(1.6, 2.2, 2.3), vec3(-0.3, 0.5, -0.5), 60.0, 256, 192);
+    b.finish()
+}
+
+/// Names of the large built-in scenes used by benchmarks (not written to scenes/).
+pub const BENCH_NAMES: [&str; 1] = ["sphere-field"];
+
+/// A field of `n × n` geodesic spheres (1280 triangles each) on the floor of a closed room lit by
+/// a ceiling panel: with n = 28, 1 003 520 sphere triangles, the "≥ 1M triangles" benchmark
+/// scene. Sphere albedos vary so the image is not uniform.
+pub fn sphere_field(n: u32) -> SceneDesc {
+    let mut b = Builder::new("sphere-field");
+    let spacing = 0.6f32;
+    let half = 0.5 * spacing * n as f32 + 1.0;
+    let wall = b.diffuse("wall", Vec3::splat(0.7));
+    let mats = [
+        b.diffuse("sphere a", vec3(0.8, 0.3, 0.2)),
+        b.diffuse("sphere b", vec3(0.3, 0.7, 0.3)),
+        b.diffuse("sphere c", vec3(0.3, 0.4, 0.8)),
+        b.diffuse("sphere d", vec3(0.75, 0.75, 0.7)),
+    ];
+    let light = b.emitter("ceiling panel", Vec3::splat(20.0));
+    let h = 6.0f32;
+    b.triangles("room", wall, &cuboid(vec3(-half, 0.0, -half), vec3(half, h, half), true));
+    let y = h - 0.01;
+    let l = 0.3 * half;
+    b.triangles("ceiling panel", light, &quad(vec3(-l, y, -l), vec3(l, y, -l), vec3(l, y, l), vec3(-l, y, l)));
+    let (unit_p, unit_n, unit_i) = icosphere(Vec3::ZERO, 1.0, 3);
+    for (k, mat) in mats.iter().enumerate() {
+        let mut positions = Vec::new();
+        let mut normals = Vec::new();
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                if ((i + 2 * j) % 4) as usize != k {
+                    continue;
+                }
+                let r = 0.22 + 0.06 * (((i * 7 + j * 13) % 5) as f32 / 4.0);
+                let c = vec3(
+                    (i as f32 + 0.5) * spacing - 0.5 * spacing * n as f32,
+                    r,
+                    (j as f32 + 0.5) * spacing - 0.5 * spacing * n as f32,
+                );
+                let base = positions.len() as u32;
+                positions.extend(unit_p.iter().map(|p| c + *p * r));
+                normals.extend_from_slice(&unit_n);
+                indices.extend(unit_i.iter().map(|i| base + i));
+            }
+        }
+        b.indexed(&format!("spheres {k}"), *mat, positions, normals, indices);
+    }
+    b.camera(vec3(0.0, 3.0, half - 0.5), vec3(0.0, 0.0, -0.3 * half), 60.0, 512, 512);
     b.finish()
 }

@@ -6,6 +6,7 @@
 //! stream hashed from (seed, pixel, sample index), so the image is bit-identical at any thread
 //! count for a sample budget.
 
+pub mod bdpt;
 pub mod pt;
 
 use std::time::{Duration, Instant};
@@ -161,10 +162,34 @@ where
     RenderOutput { film, stats, spp, elapsed: start.elapsed() }
 }
 
+/// Renders `scene` with bidirectional path tracing.
+pub fn render_bdpt(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &OfflineSettings,
+    opts: &bdpt::BdptOptions,
+    progress: &ProgressBar,
+) -> RenderOutput {
+    render_progressive(scene, settings, progress, true, |raster, sampler, tile, st| {
+        bdpt::sample(scene, accel, raster, sampler, opts, tile, st)
+    })
+}
+
 /// Renders `scene` with the reference path tracer.
 pub fn render_pt(scene: &Scene, accel: &Accel, settings: &OfflineSettings, progress: &ProgressBar) -> RenderOutput {
+    render_pt_of_length(scene, accel, settings, None, progress)
+}
+
+/// [`render_pt`] restricted to paths of exactly `edges` segments when given.
+pub fn render_pt_of_length(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &OfflineSettings,
+    edges: Option<u32>,
+    progress: &ProgressBar,
+) -> RenderOutput {
     render_progressive(scene, settings, progress, false, |raster, sampler, _tile, st| {
         let ray = scene.camera.generate_ray(raster, sampler.next_2d());
-        pt::radiance(scene, accel, ray, sampler, settings.max_depth, st)
+        pt::radiance_of_length(scene, accel, ray, sampler, settings.max_depth, edges, st)
     })
 }

@@ -25,6 +25,22 @@ pub fn radiance(
     max_depth: u32,
     stats: &mut RayStats,
 ) -> (Vec3, AovSample) {
+    radiance_of_length(scene, accel, ray, sampler, max_depth, None, stats)
+}
+
+/// [`radiance`] restricted to paths of exactly `edges` segments (camera to light) when given:
+/// emission found after d bounces has d + 1 edges, next-event estimation after d bounces d + 2.
+/// Used to check bidirectional strategies length by length.
+pub fn radiance_of_length(
+    scene: &Scene,
+    accel: &Accel,
+    ray: Ray,
+    sampler: &mut impl Sampler,
+    max_depth: u32,
+    edges: Option<u32>,
+    stats: &mut RayStats,
+) -> (Vec3, AovSample) {
+    let counts = |e: u32| edges.is_none_or(|k| k == e);
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut aov = AovSample::default();
@@ -44,7 +60,7 @@ pub fn radiance(
         // Emission seen along the ray: full weight for camera rays and after delta bounces,
         // otherwise MIS against next-event estimation.
         let le = scene.emitted(hit.tri, sp.ng, sp.uv, wo);
-        if le != Vec3::ZERO {
+        if le != Vec3::ZERO && counts(depth + 1) {
             if depth == 0 || prev_delta {
                 l += beta * le;
             } else {
@@ -57,7 +73,7 @@ pub fn radiance(
         if depth == 0 {
             aov = AovSample { albedo: bsdf.albedo(), normal: bsdf.frame.n, depth: hit.t };
         }
-        if depth >= max_depth {
+        if depth >= max_depth || edges.is_some_and(|k| depth + 1 >= k) {
             break;
         }
         let corners = scene.mesh.corners(hit.tri);
@@ -66,6 +82,7 @@ pub fn radiance(
         let u_light = sampler.next_1d();
         let u_light_pos = sampler.next_2d();
         if !bsdf.is_delta()
+            && counts(depth + 2)
             && let Some(ls) = scene.sample_li(sp.p, u_light, u_light_pos)
         {
             let f = bsdf.f(wo, ls.wi) * bsdf.abs_cos(ls.wi);
