@@ -27,7 +27,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Render an image to EXR and PNG.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Describe a scene: triangles, emitters and their power, bounds, camera.
     Info {
         /// Scene file or built-in scene name (default: the built-in Cornell box).
@@ -97,7 +97,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     }
     let pb = progress_bar(args.quiet);
     pb.set_message(format!("{} {}", options.mode.name(), source.name()));
-    let out = render::render(&scene, &accel, &options, &pb);
+    let (out, frame_stats) = render::render(&scene, &accel, &options, &pb);
     let image = out.film.image();
     let aovs = out.film.aov_images();
     let aov_refs = match &aovs {
@@ -141,6 +141,23 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         exr_path.display(),
         png_path.display()
     );
+    if let Some(fs) = frame_stats {
+        let frames = out.spp.max(1) as f64;
+        let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
+        println!(
+            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s), filter {:.1} ms; clamping removed {:.2} % of the gathered energy{}",
+            out.spp,
+            options.frame.vpls,
+            options.vpl_sampler.build(1).name(),
+            fs.vpl_time.as_secs_f64() * 1e3 / frames,
+            fs.primary_time.as_secs_f64() * 1e3 / frames,
+            fs.shadow_time.as_secs_f64() * 1e3 / frames,
+            fs.rays.shadow as f64 / shadow_s / 1e6,
+            fs.filter_time.as_secs_f64() * 1e3 / frames,
+            100.0 * fs.energy.removed_share(),
+            fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default()
+        );
+    }
     Ok(())
 }
 

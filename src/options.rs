@@ -22,6 +22,31 @@ pub enum Mode {
     /// Bidirectional path tracing: all (s, t) strategies with power-heuristic MIS and
     /// light-tracing splats.
     Bdpt,
+    /// Instant radiosity: VPLs from --vpl-sampler, gathered with interleaved sampling and the
+    /// discontinuity buffer; independent VPL sets accumulate under --spp / --time.
+    Ir,
+}
+
+/// VPL sampling strategies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum VplSamplerArg {
+    /// Standard instant radiosity (Keller 1997): light paths, lights chosen ∝ power.
+    Sir,
+    /// SIR with lights chosen ∝ their estimated contribution to the image (Wald et al. 2003).
+    SirCdf,
+    /// Bidirectional instant radiosity: R·m candidates from light and camera paths, resampled.
+    Bir,
+}
+
+impl VplSamplerArg {
+    /// The sampler object.
+    pub fn build(self, max_depth: u32) -> Box<dyn crate::vpl::VplSampler> {
+        match self {
+            VplSamplerArg::Sir => Box::new(crate::vpl::sir::Sir::new(max_depth)),
+            VplSamplerArg::SirCdf => Box::new(crate::vpl::cdf::SirCdf::new(max_depth)),
+            VplSamplerArg::Bir => Box::new(crate::vpl::bir::Bir::new(max_depth)),
+        }
+    }
 }
 
 impl Mode {
@@ -30,6 +55,7 @@ impl Mode {
         match self {
             Mode::Pt => "pt",
             Mode::Bdpt => "bdpt",
+            Mode::Ir => "ir",
         }
     }
 }
@@ -129,9 +155,31 @@ pub struct RenderArgs {
     /// Maximum number of scattering events per path (Russian roulette ends most paths earlier).
     #[arg(long, default_value_t = 128)]
     pub max_depth: u32,
-    /// Pixel reconstruction filter.
+    /// Pixel reconstruction filter (offline modes).
     #[arg(long, value_enum, default_value_t = FilterArg::Box)]
-    pub filter: FilterArg,
+    pub pixel_filter: FilterArg,
+    /// VPL sampler (ir mode).
+    #[arg(long, value_enum, default_value_t = VplSamplerArg::Sir)]
+    pub vpl_sampler: VplSamplerArg,
+    /// VPLs per frame (ir mode).
+    #[arg(long, default_value_t = 256)]
+    pub vpls: usize,
+    /// Interleaved-sampling tile "NxM" (ir mode); 1x1 disables interleaving.
+    #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
+    pub interleave: (u32, u32),
+    /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
+    /// (unbiased, noisier near corners).
+    #[arg(long, default_value_t = 1000.0)]
+    pub clamp: f32,
+    /// Do not apply the discontinuity buffer after the gather (ir mode).
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
+    #[arg(long, default_value_t = 20.0)]
+    pub filter_angle: f32,
+    /// Discontinuity buffer: largest relative depth difference between pixels averaged together.
+    #[arg(long, default_value_t = 0.05)]
+    pub filter_depth: f32,
     /// Also write albedo, normal and depth layers into the EXR.
     #[arg(long)]
     pub aov: bool,
@@ -182,6 +230,10 @@ pub struct RenderOptions {
     pub tonemap: Tonemap,
     /// bdpt: the strategy to write alone as well.
     pub debug_strategy: Option<(usize, usize)>,
+    /// ir: the VPL sampler.
+    pub vpl_sampler: VplSamplerArg,
+    /// ir: the frame pipeline settings.
+    pub frame: crate::frame::FrameSettings,
 }
 
 impl RenderArgs {
@@ -219,6 +271,17 @@ impl RenderArgs {
                 return Err(OptionsError(format!("{flag} {v} is outside 1…16384")));
             }
         }
+        if self.vpls == 0 || self.vpls > 10_000_000 {
+            return Err(OptionsError(format!("--vpls {} is outside 1…10000000", self.vpls)));
+        }
+        if !(self.clamp >= 0.0 && self.clamp.is_finite()) {
+            return Err(OptionsError(format!("--clamp {} must be finite and ≥ 0", self.clamp)));
+        }
+        let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
+        let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
+        if !angle_ok || !depth_ok {
+            return Err(OptionsError("--filter-angle must be in (0, 180] and --filter-depth > 0".into()));
+        }
         if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
             return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
         }
@@ -230,7 +293,7 @@ impl RenderArgs {
                 self.max_depth
             )));
         }
-        let filter = match self.filter {
+        let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,
             FilterArg::Tent => FilterKind::Tent,
             FilterArg::Gaussian => FilterKind::Gaussian,
@@ -247,7 +310,32 @@ impl RenderArgs {
             offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },
             tonemap,
             debug_strategy: self.debug_strategy,
+            vpl_sampler: self.vpl_sampler,
+            frame: crate::frame::FrameSettings {
+                vpls: self.vpls,
+                interleave: self.interleave,
+                clamp: self.clamp,
+                filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
+                max_specular: 8,
+                jitter: true,
+            },
         })
+    }
+}
+
+/// Parses "NxM" (each 1…64).
+pub fn parse_interleave(v: &str) -> Result<(u32, u32), String> {
+    let parts: Vec<&str> = v.split(['x', 'X']).collect();
+    match parts.as_slice() {
+        [n, m] => {
+            let n: u32 = n.trim().parse().map_err(|e| format!("'{v}': {e}"))?;
+            let m: u32 = m.trim().parse().map_err(|e| format!("'{v}': {e}"))?;
+            if !(1..=64).contains(&n) || !(1..=64).contains(&m) {
+                return Err(format!("'{v}': tile sides must be 1…64"));
+            }
+            Ok((n, m))
+        }
+        _ => Err(format!("'{v}' is not NxM (e.g. 8x8)")),
     }
 }
 

@@ -9,6 +9,7 @@ use glam::{Vec2, vec2};
 use indicatif::ProgressBar;
 
 use crate::accel::Accel;
+use crate::frame::{self, FrameStats};
 use crate::load::{self, LoadError, builtin};
 use crate::offline::bdpt::{BdptOptions, StrategyFilter};
 use crate::offline::{self, RenderOutput};
@@ -103,13 +104,25 @@ pub fn focus_at(scene: &mut Scene, accel: &Accel, at: Vec2) -> Result<(), Prepar
     Ok(())
 }
 
-/// Runs the requested mode.
-pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &ProgressBar) -> RenderOutput {
+/// Runs the requested mode; VPL modes also return their per-stage statistics.
+pub fn render(
+    scene: &Scene,
+    accel: &Accel,
+    options: &RenderOptions,
+    progress: &ProgressBar,
+) -> (RenderOutput, Option<FrameStats>) {
     match options.mode {
-        Mode::Pt => offline::render_pt(scene, accel, &options.offline, progress),
+        Mode::Pt => (offline::render_pt(scene, accel, &options.offline, progress), None),
         Mode::Bdpt => {
             let opts = BdptOptions { max_depth: options.offline.max_depth, only: None, path_edges: None };
-            offline::render_bdpt(scene, accel, &options.offline, &opts, progress)
+            (offline::render_bdpt(scene, accel, &options.offline, &opts, progress), None)
+        }
+        Mode::Ir => {
+            let mut sampler = options.vpl_sampler.build(options.offline.max_depth);
+            let o = &options.offline;
+            let acc = frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs };
+            let (out, stats) = frame::render_progressive(scene, accel, sampler.as_mut(), &options.frame, acc, progress);
+            (out, Some(stats))
         }
     }
 }

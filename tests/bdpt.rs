@@ -122,9 +122,11 @@ fn light_tracing_alone_matches_pt() {
     let mut mean = Image::new(48, 48);
     let mut var = vec![Vec3::ZERO; mean.data.len()];
     for p in &parts {
-        for i in 0..mean.data.len() {
-            mean.data[i] += p.mean.data[i];
-            var[i] += p.var_of_mean[i];
+        for (m, x) in mean.data.iter_mut().zip(&p.mean.data) {
+            *m += *x;
+        }
+        for (v, x) in var.iter_mut().zip(&p.var_of_mean) {
+            *v += *x;
         }
     }
     let reference = Estimate { mean, var_of_mean: var, batches: 12 };

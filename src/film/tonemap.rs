@@ -11,18 +11,13 @@ use super::Image;
 use crate::color::{linear_to_srgb, luminance};
 
 /// How HDR values become display values.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub enum Tonemap {
     /// Reinhard et al. 2002 global operator with key 0.18.
+    #[default]
     Reinhard,
     /// Linear scaling by 2^stops, then clamp and sRGB.
     Exposure(f32),
-}
-
-impl Default for Tonemap {
-    fn default() -> Self {
-        Tonemap::Reinhard
-    }
 }
 
 /// Maps an image to 8-bit sRGB, RGB interleaved.

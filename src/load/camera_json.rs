@@ -43,7 +43,11 @@ pub fn read_camera_json(path: &Path) -> Result<CameraFile, LoadError> {
 pub fn parse_camera_json(path: &Path, bytes: &[u8]) -> Result<CameraFile, LoadError> {
     let value: Value = serde_json::from_slice(bytes).map_err(|e| json_error(path, &e))?;
     let Value::Object(map) = value else {
-        return Err(LoadError::new(path, LoadErrorKind::Invalid, "must contain a JSON object such as {\"eye\": [...]}"));
+        return Err(LoadError::new(
+            path,
+            LoadErrorKind::Invalid,
+            "must contain a JSON object such as {\"eye\": [...]}",
+        ));
     };
     let fields = Fields { path, map: &map };
 
@@ -55,7 +59,9 @@ pub fn parse_camera_json(path: &Path, bytes: &[u8]) -> Result<CameraFile, LoadEr
     let height = fields.pixels("height")?;
 
     if !(fov_y_deg > 0.0 && fov_y_deg < 179.0) {
-        return Err(fields.invalid("fov_y_deg", format!("must be between 0 and 179 degrees (exclusive), got {fov_y_deg}")));
+        return Err(
+            fields.invalid("fov_y_deg", format!("must be between 0 and 179 degrees (exclusive), got {fov_y_deg}"))
+        );
     }
     if eye == target {
         return Err(fields.invalid("target", "must differ from 'eye'"));
@@ -122,7 +128,8 @@ impl Fields<'_> {
     /// An array of three finite numbers, if the key is present.
     fn vec3(&self, key: &str) -> Result<Option<Vec3>, LoadError> {
         let Some(v) = self.map.get(key) else { return Ok(None) };
-        let shape_error = || self.invalid(key, format!("must be an array of three numbers [x, y, z], got {}", type_name(v)));
+        let shape_error =
+            || self.invalid(key, format!("must be an array of three numbers [x, y, z], got {}", type_name(v)));
         let Some(items) = v.as_array() else { return Err(shape_error()) };
         if items.len() != 3 {
             return Err(self.invalid(key, format!("must have three components [x, y, z], got {}", items.len())));
@@ -168,8 +175,10 @@ mod tests {
 
     #[test]
     fn full_camera_json_is_read_with_aspect_from_width_and_height() {
-        let f = parse(r#"{"eye": [0, 1, 4], "target": [0, 1, 0], "up": [0, 0, 1], "fov_y_deg": 40,
-                         "width": 200, "height": 100}"#)
+        let f = parse(
+            r#"{"eye": [0, 1, 4], "target": [0, 1, 0], "up": [0, 0, 1], "fov_y_deg": 40,
+                         "width": 200, "height": 100}"#,
+        )
         .unwrap();
         assert_eq!(f.camera.eye, Vec3::new(0.0, 1.0, 4.0));
         assert_eq!(f.camera.up, Vec3::Z);

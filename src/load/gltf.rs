@@ -4,8 +4,11 @@
 //! transforms to world space. Each triangle primitive becomes one [`MeshDesc`] (positions,
 //! normals by the inverse transpose, `TEXCOORD_0`); a node with a negative-determinant transform
 //! has its winding reversed so that counter-clockwise still means front. The first perspective
-//! camera met becomes the scene camera (eye = node origin, looking down the node's −z, up = +y);
-//! `KHR_lights_punctual` point and spot lights become [`PunctualDesc`]s.
+//! camera met becomes the scene camera (eye = node origin, looking down the node's −z, up = +y,
+//! `aspectRatio` kept; the image size comes from the scene's `extras.mirage.width/height` when
+//! present, as scenes/README.md specifies, else it is left to the command line);
+//! `KHR_lights_punctual` point and spot lights become [`PunctualDesc`]s (range ignored,
+//! directional lights skipped, each with a warning).
 //!
 //! # Materials
 //!
@@ -36,7 +39,11 @@
 //! malformed relative URI cannot reach the crate's `unwrap`; `data:` URIs are still decoded by
 //! `gltf::buffer::Data`. `extensionsRequired` is checked before the crate's validation (which
 //! would reject unknown ones with a terse "Unsupported extension") so the message names the
-//! extension.
+//! extension. Also before validation: every primitive must have a `POSITION` accessor that
+//! exists (the crate's validation indexes it unchecked); missing `POSITION` min/max, which mirage
+//! never reads, are filled in with a warning; application-specific attributes (`_BATCHID`),
+//! which the crate rejects without its `extras` feature, are dropped with a warning. A seeded
+//! corruption test (tests/io.rs; `MIRAGE_IO_FUZZ=20000` for a deeper run) guards all this.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -52,12 +59,8 @@ use super::error::{LoadError, LoadErrorKind};
 use crate::color::srgb_to_linear;
 
 /// Extensions this loader interprets; `extensionsRequired` may only name these.
-pub const IMPLEMENTED_EXTENSIONS: [&str; 4] = [
-    "KHR_lights_punctual",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_transmission",
-];
+pub const IMPLEMENTED_EXTENSIONS: [&str; 4] =
+    ["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_ior", "KHR_materials_transmission"];
 
 /// Albedo of the material given to primitives without one.
 const DEFAULT_ALBEDO: f32 = 0.8;
@@ -72,7 +75,7 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, LoadError> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let (doc, blob, warnings) = parse(path, &bytes)?;
+    let Parsed { doc, blob, warnings } = parse(path, &bytes)?;
     let mut loader = Loader {
         path,
         base: &base,
@@ -86,12 +89,57 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, LoadError> {
     };
     loader.buffers = loader.load_buffers(blob)?;
     loader.report_ignored_features();
-    loader.walk()?;
-    Ok(loader.desc)
+    let scene = loader.walk()?;
+    let mut desc = loader.desc;
+    if let Some(camera) = desc.camera.as_mut()
+        && let Some((width, height)) = scene.and_then(|s| scene_resolution(json_chunk(&bytes), s))
+    {
+        camera.width = Some(width);
+        camera.height = Some(height);
+    }
+    Ok(desc)
 }
 
-/// Parses and validates the document; returns it with the `.glb` binary chunk and warnings.
-fn parse(path: &Path, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>, Vec<String>), LoadError> {
+/// The JSON text of a `.gltf`, or the JSON chunk of a `.glb` (empty when it cannot be found).
+fn json_chunk(bytes: &[u8]) -> &[u8] {
+    if !bytes.starts_with(b"glTF") {
+        return bytes;
+    }
+    let length = bytes.get(12..16).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes).unwrap_or(0);
+    bytes.get(20..20usize.saturating_add(length as usize)).unwrap_or_default()
+}
+
+/// The image size mirage's scene generator writes into a scene's extras,
+/// `"extras": {"mirage": {"width": W, "height": H}}` (scenes/README.md). The gltf crate is built
+/// without its `extras` feature, so this reads the JSON directly.
+fn scene_resolution(json: &[u8], scene: usize) -> Option<(u32, u32)> {
+    #[derive(serde::Deserialize)]
+    struct Root {
+        #[serde(default)]
+        scenes: Vec<SceneExtras>,
+    }
+    #[derive(serde::Deserialize)]
+    struct SceneExtras {
+        #[serde(default)]
+        extras: Option<serde_json::Value>,
+    }
+    let root: Root = serde_json::from_slice(json).ok()?;
+    let mirage = root.scenes.get(scene)?.extras.as_ref()?.get("mirage")?;
+    let pixels = |key: &str| mirage.get(key)?.as_u64().and_then(|v| u32::try_from(v).ok()).filter(|&v| v > 0);
+    Some((pixels("width")?, pixels("height")?))
+}
+
+/// A parsed and validated document.
+struct Parsed {
+    doc: Document,
+    /// The `.glb` binary chunk.
+    blob: Option<Vec<u8>>,
+    /// Unsupported extensions used, repaired or dropped parts.
+    warnings: Vec<String>,
+}
+
+/// Parses and validates the document (see the module doc for what is checked or repaired first).
+fn parse(path: &Path, bytes: &[u8]) -> Result<Parsed, LoadError> {
     if bytes.starts_with(b"glTF") {
         check_glb_header(path, bytes)?;
     }
@@ -103,7 +151,10 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>, Vec<St
             return Err(LoadError::new(
                 path,
                 LoadErrorKind::Unsupported,
-                format!("requires unsupported extension '{ext}' (mirage implements {})", IMPLEMENTED_EXTENSIONS.join(", ")),
+                format!(
+                    "requires unsupported extension '{ext}' (mirage implements {})",
+                    IMPLEMENTED_EXTENSIONS.join(", ")
+                ),
             ));
         }
     }
@@ -118,12 +169,48 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>, Vec<St
     for (m, mesh) in root.meshes.iter_mut().enumerate() {
         for (p, prim) in mesh.primitives.iter_mut().enumerate() {
             if prim.attributes.remove(&Checked::Invalid).is_some() {
-                warnings.push(format!("mesh {m}, primitive {p}: unrecognised vertex attribute(s) ignored"));
+                warnings.push(format!(
+                    "{}: mesh {m}, primitive {p}: unrecognised vertex attribute(s) ignored",
+                    path.display()
+                ));
             }
         }
     }
+    // glTF requires min/max on POSITION accessors; mirage never uses them, so files that omit
+    // them (hand-written or generated) load with a warning instead of failing validation. The
+    // gltf crate's validation indexes the POSITION accessor unchecked, so check it exists first.
+    let mut positions = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let place = format!("mesh {m}, primitive {p}");
+            let Some(a) = prim.attributes.get(&Checked::Valid(Semantic::Positions)).map(|a| a.value()) else {
+                return Err(LoadError::new(path, LoadErrorKind::Malformed, "has no POSITION attribute").at(place));
+            };
+            if a >= root.accessors.len() {
+                let message = format!("POSITION refers to accessor {a}, which does not exist");
+                return Err(LoadError::new(path, LoadErrorKind::Malformed, message).at(place));
+            }
+            positions.push(a);
+        }
+    }
+    for a in positions {
+        let Some(accessor) = root.accessors.get_mut(a) else { continue };
+        let mut repaired = false;
+        for bound in [&mut accessor.min, &mut accessor.max] {
+            if bound.as_ref().is_none_or(|v| serde_json::from_value::<[f32; 3]>(v.clone()).is_err()) {
+                *bound = Some(serde_json::json!([0.0, 0.0, 0.0]));
+                repaired = true;
+            }
+        }
+        if repaired {
+            warnings.push(format!(
+                "{}: accessor {a}: POSITION lacks valid min/max (required by glTF); not needed, ignored",
+                path.display()
+            ));
+        }
+    }
     let doc = Document::from_json(root).map_err(|e| translate(path, e))?;
-    Ok((doc, blob, warnings))
+    Ok(Parsed { doc, blob, warnings })
 }
 
 /// Checks the 12-byte `.glb` header so that a truncated file gets a clear message.
@@ -134,13 +221,20 @@ fn check_glb_header(path: &Path, bytes: &[u8]) -> Result<(), LoadError> {
         return Err(malformed(format!("truncated .glb: only {} bytes, shorter than the 12-byte header", bytes.len())));
     };
     if version != 2 {
-        return Err(LoadError::new(path, LoadErrorKind::Unsupported, format!("binary glTF version {version} (mirage reads 2)")));
+        return Err(LoadError::new(
+            path,
+            LoadErrorKind::Unsupported,
+            format!("binary glTF version {version} (mirage reads 2)"),
+        ));
     }
     if (length as usize) < 12 {
         return Err(malformed(format!("corrupt .glb header: declared length {length} is shorter than the header")));
     }
     if length as usize > bytes.len() {
-        return Err(malformed(format!("truncated .glb: the header declares {length} bytes but the file has {}", bytes.len())));
+        return Err(malformed(format!(
+            "truncated .glb: the header declares {length} bytes but the file has {}",
+            bytes.len()
+        )));
     }
     Ok(())
 }
@@ -162,14 +256,26 @@ fn translate(path: &Path, err: gltf::Error) -> LoadError {
         }
         gltf::Error::Validation(errors) => {
             let unsupported = errors.iter().any(|(_, e)| *e == gltf::json::validation::Error::Unsupported);
-            let described: Vec<String> =
-                errors.iter().take(3).map(|(p, e)| format!("{}: {}", p.as_str(), e.to_string().to_lowercase())).collect();
+            let described: Vec<String> = errors
+                .iter()
+                .take(3)
+                .map(|(p, e)| format!("{}: {}", p.as_str(), e.to_string().to_lowercase()))
+                .collect();
             let more = if errors.len() > 3 { format!(" (and {} more)", errors.len() - 3) } else { String::new() };
             let kind = if unsupported { LoadErrorKind::Unsupported } else { LoadErrorKind::Malformed };
             LoadError::new(path, kind, format!("invalid glTF: {}{more}", described.join("; ")))
         }
         other => malformed(other.to_string()),
     }
+}
+
+/// `err` located inside `outer`: "node 1, mesh 0, primitive 0, accessor 3".
+fn within(err: LoadError, outer: &str) -> LoadError {
+    let location = match &err.location {
+        Some(inner) => format!("{outer}, {inner}"),
+        None => outer.to_string(),
+    };
+    err.at(location)
 }
 
 /// Decodes a PNG or JPEG image and converts its sRGB-encoded texels to linear RGB.
@@ -180,7 +286,10 @@ pub fn decode_srgb_texture(bytes: &[u8]) -> Result<TextureDesc, String> {
         let lut: Vec<f32> = (0..=255).map(|v| srgb_to_linear(v as f32 / 255.0)).collect();
         img.to_rgb8().pixels().map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize])).collect()
     } else {
-        img.to_rgb32f().pixels().map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2]))).collect()
+        img.to_rgb32f()
+            .pixels()
+            .map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])))
+            .collect()
     };
     if texels.is_empty() || texels.len() as u64 != width as u64 * height as u64 {
         return Err(format!("image has no texels ({width}×{height})"));
@@ -256,7 +365,10 @@ impl Loader<'_> {
     fn read_uri(&self, uri: &str) -> Result<Vec<u8>, LoadError> {
         if uri.starts_with("data:") {
             return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), None).map(|d| d.0).map_err(|e| {
-                self.error(LoadErrorKind::Malformed, format!("data URI cannot be decoded ({})", translate(self.path, e).message))
+                self.error(
+                    LoadErrorKind::Malformed,
+                    format!("data URI cannot be decoded ({})", translate(self.path, e).message),
+                )
             });
         }
         let file = if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
@@ -274,7 +386,8 @@ impl Loader<'_> {
             self.base.join(relative)
         };
         std::fs::read(&file).map_err(|e| {
-            let reason = if e.kind() == std::io::ErrorKind::NotFound { "file not found".to_string() } else { e.to_string() };
+            let reason =
+                if e.kind() == std::io::ErrorKind::NotFound { "file not found".to_string() } else { e.to_string() };
             let message = format!("cannot read '{}': {reason}", file.display());
             LoadError { path: self.path.to_path_buf(), location: None, kind: LoadErrorKind::Io(e), message }
         })
@@ -311,11 +424,13 @@ impl Loader<'_> {
         }
     }
 
-    /// Walks the default scene's node hierarchy depth-first (iteratively: chains may be deep).
-    fn walk(&mut self) -> Result<(), LoadError> {
+    /// Walks the default scene's node hierarchy depth-first (iteratively: chains may be deep);
+    /// returns the index of the scene walked, `None` when there is none (all root nodes).
+    fn walk(&mut self) -> Result<Option<usize>, LoadError> {
         let doc = self.doc;
         let nodes: Vec<gltf::Node> = doc.nodes().collect();
-        let roots: Vec<usize> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        let scene = doc.default_scene().or_else(|| doc.scenes().next());
+        let roots: Vec<usize> = match &scene {
             Some(scene) => scene.nodes().map(|n| n.index()).collect(),
             None => {
                 let mut is_child = vec![false; nodes.len()];
@@ -333,7 +448,10 @@ impl Loader<'_> {
             let Some(node) = nodes.get(index) else { continue };
             match visited.get_mut(index) {
                 Some(true) => {
-                    self.warn(&format!("node {index}"), "has more than one parent or is part of a cycle; visited once only");
+                    self.warn(
+                        &format!("node {index}"),
+                        "has more than one parent or is part of a cycle; visited once only",
+                    );
                     continue;
                 }
                 Some(v) => *v = true,
@@ -344,7 +462,7 @@ impl Loader<'_> {
             let children: Vec<usize> = node.children().map(|c| c.index()).collect();
             stack.extend(children.into_iter().rev().map(|c| (c, world)));
         }
-        Ok(())
+        Ok(scene.map(|s| s.index()))
     }
 
     fn visit(&mut self, node: &gltf::Node, world: &Mat4) -> Result<(), LoadError> {
@@ -410,7 +528,9 @@ impl Loader<'_> {
             gltf::khr_lights_punctual::Kind::Directional => {
                 self.warn(&place, "directional light ignored (not supported)");
             }
-            gltf::khr_lights_punctual::Kind::Point => self.desc.lights.push(PunctualDesc::Point { position, intensity }),
+            gltf::khr_lights_punctual::Kind::Point => {
+                self.desc.lights.push(PunctualDesc::Point { position, intensity })
+            }
             gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
                 self.desc.lights.push(PunctualDesc::Spot {
                     position,
@@ -425,7 +545,7 @@ impl Loader<'_> {
 
     fn primitive(&mut self, origin: Origin, prim: &gltf::Primitive, world: &Mat4) -> Result<(), LoadError> {
         let place = origin.to_string();
-        let at = |e: LoadError| e.at(place.clone());
+        let at = |e: LoadError| within(e, &place);
         if prim.mode() != Mode::Triangles {
             self.warn(&place, format!("mode {:?} skipped (only triangles are rendered)", prim.mode()));
             return Ok(());
@@ -443,7 +563,9 @@ impl Loader<'_> {
         let positions: Vec<Vec3> = local.iter().map(|&p| world.transform_point3(p)).collect();
         let n = positions.len();
         let Ok(n32) = u32::try_from(n) else {
-            return Err(at(self.error(LoadErrorKind::Unsupported, format!("{n} vertices exceed the 32-bit index range"))));
+            return Err(at(
+                self.error(LoadErrorKind::Unsupported, format!("{n} vertices exceed the 32-bit index range"))
+            ));
         };
 
         let mut normals = Vec::new();
@@ -472,7 +594,8 @@ impl Loader<'_> {
             Some(acc) => {
                 let indices = self.read_indices(&acc).map_err(at)?;
                 if let Some((k, &i)) = indices.iter().enumerate().find(|&(_, &i)| i >= n32) {
-                    let message = format!("index {k} (accessor {}) is {i}, but there are only {n} vertices", acc.index());
+                    let message =
+                        format!("index {k} (accessor {}) is {i}, but there are only {n} vertices", acc.index());
                     return Err(at(self.error(LoadErrorKind::Invalid, message)));
                 }
                 indices
@@ -480,7 +603,10 @@ impl Loader<'_> {
             None => (0..n32).collect(),
         };
         if indices.len() % 3 != 0 {
-            self.warn(&place, format!("{} indices is not a multiple of 3; the last {} dropped", indices.len(), indices.len() % 3));
+            self.warn(
+                &place,
+                format!("{} indices is not a multiple of 3; the last {} dropped", indices.len(), indices.len() % 3),
+            );
             indices.truncate(indices.len() - indices.len() % 3);
         }
         if world.determinant() < 0.0 {
@@ -587,7 +713,7 @@ impl Loader<'_> {
         let bytes = match (&json.buffer_view, &json.uri) {
             (Some(view), _) => {
                 let view = view.value();
-                self.view_bytes(view).map_err(|e| e.at(image_place.clone()))?.to_vec()
+                self.view_bytes(view).map_err(|e| within(e, &image_place))?.to_vec()
             }
             (None, Some(uri)) => self.read_uri(uri).map_err(|e| e.at(image_place.clone()))?,
             (None, None) => {
@@ -641,7 +767,8 @@ impl Loader<'_> {
     fn read_indices(&self, accessor: &gltf::Accessor) -> Result<Vec<u32>, LoadError> {
         let ty = accessor.data_type();
         if accessor.dimensions() != Dimensions::Scalar || !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32) {
-            let message = format!("indices have type {:?} of {ty:?}; expected an unsigned scalar", accessor.dimensions());
+            let message =
+                format!("indices have type {:?} of {ty:?}; expected an unsigned scalar", accessor.dimensions());
             return Err(self.error(LoadErrorKind::Malformed, message).at(format!("accessor {}", accessor.index())));
         }
         self.read_accessor(accessor, |b| decode_uint(b, ty))
@@ -662,10 +789,10 @@ impl Loader<'_> {
         let elem_size = comps * comp_size;
         let mut out = match accessor.view() {
             Some(view) => {
-                let bytes = self.view_bytes(view.index()).map_err(|e| e.at(place.clone()))?;
+                let bytes = self.view_bytes(view.index()).map_err(|e| within(e, &place))?;
                 let stride = view.stride().unwrap_or(elem_size);
                 let strided = Strided { bytes, offset: accessor.offset(), stride, count, elem_size };
-                strided.check().map_err(|what| malformed(format!("{what}: buffer too short for this accessor")))?;
+                strided.check().map_err(malformed)?;
                 strided.read(comps, comp_size, &decode)
             }
             None => {
@@ -683,19 +810,21 @@ impl Loader<'_> {
                 gltf::accessor::sparse::IndexType::U16 => DataType::U16,
                 gltf::accessor::sparse::IndexType::U32 => DataType::U32,
             };
-            let idx_bytes = self.view_bytes(idx.view().index()).map_err(|e| e.at(place.clone()))?;
+            let idx_bytes = self.view_bytes(idx.view().index()).map_err(|e| within(e, &place))?;
             let idx_size = idx_ty.size();
-            let targets = Strided { bytes: idx_bytes, offset: idx.offset(), stride: idx_size, count: k, elem_size: idx_size };
+            let targets =
+                Strided { bytes: idx_bytes, offset: idx.offset(), stride: idx_size, count: k, elem_size: idx_size };
             targets.check().map_err(|what| malformed(format!("sparse indices: {what}")))?;
             let targets = targets.read(1, idx_size, &|b| decode_uint(b, idx_ty));
-            let val_bytes = self.view_bytes(sparse.values().view().index()).map_err(|e| e.at(place.clone()))?;
+            let val_bytes = self.view_bytes(sparse.values().view().index()).map_err(|e| within(e, &place))?;
             let values =
                 Strided { bytes: val_bytes, offset: sparse.values().offset(), stride: elem_size, count: k, elem_size };
             values.check().map_err(|what| malformed(format!("sparse values: {what}")))?;
             let values = values.read(comps, comp_size, &decode);
             for (j, &target) in targets.iter().enumerate() {
                 let t = target as usize;
-                let (Some(dst), Some(src)) = (out.get_mut(t * comps..(t + 1) * comps), values.get(j * comps..(j + 1) * comps))
+                let (Some(dst), Some(src)) =
+                    (out.get_mut(t * comps..(t + 1) * comps), values.get(j * comps..(j + 1) * comps))
                 else {
                     return Err(malformed(format!("sparse index {target} is outside the {count} elements")));
                 };
@@ -730,7 +859,13 @@ impl Strided<'_> {
             .and_then(|s| s.checked_add(self.elem_size));
         match end {
             Some(end) if end <= self.bytes.len() => Ok(()),
-            _ => Err(format!("{} elements from byte {} need more than the view's {} bytes", self.count, self.offset, self.bytes.len())),
+            _ => Err(format!(
+                "buffer too short for this accessor: {} elements of {} bytes from byte {} overrun the view's {} bytes",
+                self.count,
+                self.elem_size,
+                self.offset,
+                self.bytes.len()
+            )),
         }
     }
 

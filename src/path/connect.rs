@@ -55,7 +55,6 @@ pub fn unoccluded(scene: &Scene, accel: &Accel, a: &Vertex, b: &Vertex, stats: &
 
 /// Evaluates strategy (s, t) for the given sub-paths (`light.len() ≥ s`, `camera.len() ≥ t`).
 /// Strategies s = 1 and t = 1 draw fresh samples from `sampler`.
-#[allow(clippy::too_many_arguments)]
 pub fn connect(
     scene: &Scene,
     accel: &Accel,

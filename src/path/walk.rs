@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 use super::vertex::{Vertex, VertexKind, shading_correction};
 use crate::accel::{Accel, offset_origin, ray_offset};
 use crate::bsdf::{Bsdf, TransportMode};
-use crate::sampling::Sampler;
+use crate::sampling::{Distribution1D, Sampler};
 use crate::scene::{Ray, Scene};
 use crate::stats::RayStats;
 
@@ -51,6 +51,20 @@ pub fn light_subpath(
     path: &mut Vec<Vertex>,
     stats: &mut RayStats,
 ) {
+    light_subpath_with(scene, accel, &scene.lights.distribution, sampler, max_vertices, path, stats)
+}
+
+/// [`light_subpath`] with the light chosen by `dist` (a light-source CDF) instead of ∝ power;
+/// the first vertex's density includes that choice.
+pub fn light_subpath_with(
+    scene: &Scene,
+    accel: &Accel,
+    dist: &Distribution1D,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
     path.clear();
     if max_vertices == 0 {
         return;
@@ -58,7 +72,7 @@ pub fn light_subpath(
     let u_light = sampler.next_1d();
     let u_pos = sampler.next_2d();
     let u_dir = sampler.next_2d();
-    let Some(es) = scene.sample_le(u_light, u_pos, u_dir) else { return };
+    let Some(es) = scene.sample_le_with(dist, u_light, u_pos, u_dir) else { return };
     if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.le == Vec3::ZERO {
         return;
     }
@@ -85,7 +99,6 @@ pub fn light_subpath(
 
 /// Extends `path` (whose last vertex emitted `ray` with solid-angle density `pdf_w`) by
 /// tracing and sampling BSDFs until `max_vertices`, a miss, absorption or Russian roulette.
-#[allow(clippy::too_many_arguments)]
 pub fn random_walk(
     scene: &Scene,
     accel: &Accel,

@@ -37,7 +37,7 @@ impl IndependentSampler {
     /// The stream of one pixel sample: a hash of (seed, pixel index, sample index), so images do
     /// not depend on the order in which threads visit pixels.
     pub fn for_pixel_sample(seed: u64, pixel: u64, sample: u64) -> Self {
-        IndependentSampler { rng: Pcg32::from_words(&[seed, 0x5049_5845_4c, pixel, sample]) }
+        IndependentSampler { rng: Pcg32::from_words(&[seed, 0x0050_4958_454c, pixel, sample]) }
     }
 
     /// A stream for any other purpose, keyed by a tag and indices (chain, step, light path...).

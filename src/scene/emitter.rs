@@ -264,7 +264,12 @@ impl Scene {
     /// Area density with which a light path starts at a point of emissive triangle `tri`
     /// (choice of the light ∝ power times uniform area density).
     pub fn pdf_light_position(&self, light: u32) -> f32 {
-        let pmf = self.lights.distribution.pmf(light as usize);
+        self.pdf_light_position_with(&self.lights.distribution, light)
+    }
+
+    /// [`pdf_light_position`](Self::pdf_light_position) when lights are chosen by `dist`.
+    pub fn pdf_light_position_with(&self, dist: &Distribution1D, light: u32) -> f32 {
+        let pmf = dist.pmf(light as usize);
         match self.lights.list[light as usize] {
             Light::Area { area, .. } => pmf / area,
             _ => pmf,
@@ -292,7 +297,19 @@ impl Scene {
 
     /// Starts a light path: a light ∝ power, a point on it, and an emission direction.
     pub fn sample_le(&self, u_light: f32, u_pos: Vec2, u_dir: Vec2) -> Option<EmissionSample> {
-        let choice = self.lights.distribution.sample(u_light);
+        self.sample_le_with(&self.lights.distribution, u_light, u_pos, u_dir)
+    }
+
+    /// [`sample_le`](Self::sample_le) with lights chosen by `dist` instead of ∝ power (the
+    /// light-source CDF of Wald et al. 2003).
+    pub fn sample_le_with(
+        &self,
+        dist: &Distribution1D,
+        u_light: f32,
+        u_pos: Vec2,
+        u_dir: Vec2,
+    ) -> Option<EmissionSample> {
+        let choice = dist.sample(u_light);
         let light = choice.index as u32;
         match self.lights.list[choice.index] {
             Light::Area { tri, two_sided, area } => {

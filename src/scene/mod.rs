@@ -181,7 +181,7 @@ impl Scene {
                 }
                 let [a, b, c] = [m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]];
                 let area2 = (b - a).cross(c - a).length();
-                if !(a.is_finite() && b.is_finite() && c.is_finite()) || !(area2 > 0.0) || !area2.is_finite() {
+                if !(a.is_finite() && b.is_finite() && c.is_finite() && area2 > 0.0 && area2.is_finite()) {
                     dropped += 1;
                     continue;
                 }
@@ -303,7 +303,7 @@ fn build_camera(desc: Option<&CameraDesc>, s: &CameraSettings, bounds: &Bounds) 
         return Err("camera eye, target and up must be finite".into());
     }
     let forward = target - eye;
-    if forward.length_squared() <= 0.0 || !(forward.length_squared() > 0.0) {
+    if !(forward.length_squared() > 0.0) {
         return Err("camera eye and target coincide".into());
     }
     if forward.normalize().cross(up).length() < 1e-6 {

@@ -5,7 +5,7 @@
 //! when, over blocks of pixels, the squared differences are explained by their variances:
 //! `mean_b (A_b − B_b)² / (σ²_A,b + σ²_B,b)` stays near 1 ([`agreement`]). The bound used in the
 //! tests is derived from the distribution of that statistic, not tuned to pass.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::needless_range_loop)]
 
 use std::path::PathBuf;
 

@@ -1,0 +1,5 @@
+//! ⑦ Image-space filters applied to the gathered light: the discontinuity buffer.
+
+pub mod discontinuity;
+
+pub use discontinuity::{DiscontinuitySettings, filter as discontinuity_filter};

@@ -1,0 +1,230 @@
+//! One frame of the VPL pipeline, in flow order: VPL sampler → G-buffer (primary rays) →
+//! interleaved gather (shadow rays) → discontinuity buffer → image. Shared by
+//! `render --mode ir|mir` (which accumulates independent frames) and the interactive viewer.
+
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use indicatif::ProgressBar;
+
+use crate::accel::Accel;
+use crate::film::{AovSample, Film, FilmTile, FilterKind};
+use crate::filter::{DiscontinuitySettings, discontinuity_filter};
+use crate::gather::{self, GBuffer, GatherEnergy, Interleave};
+use crate::offline::{Budget, RenderOutput};
+use crate::scene::{Camera, Scene};
+use crate::stats::RayStats;
+use crate::vpl::transfer::g_bound;
+use crate::vpl::{SamplerStats, VplSampler, VplSet};
+
+/// Settings of the VPL pipeline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameSettings {
+    /// VPLs per frame (m).
+    pub vpls: usize,
+    /// Interleave tile n×m.
+    pub interleave: (u32, u32),
+    /// G clamp in units of 1/(scene diagonal)² (0: no clamp).
+    pub clamp: f32,
+    /// Discontinuity-buffer thresholds, or `None` for no filtering.
+    pub filter: Option<(f32, f32)>,
+    /// Specular bounces followed by primary rays.
+    pub max_specular: u32,
+    /// Jitter primary rays inside pixels (accumulating frames then anti-aliases).
+    pub jitter: bool,
+}
+
+impl FrameSettings {
+    /// Interactive defaults: 256 VPLs, 8×8 interleaving, clamp 1000, filter 20° / 5 %.
+    pub fn interactive() -> Self {
+        FrameSettings {
+            vpls: 256,
+            interleave: (8, 8),
+            clamp: 1000.0,
+            filter: Some((20.0, 0.05)),
+            max_specular: 4,
+            jitter: true,
+        }
+    }
+
+    /// Unbiased settings: no clamp, no filter.
+    pub fn unbiased(vpls: usize) -> Self {
+        FrameSettings { vpls, clamp: 0.0, filter: None, ..Self::interactive() }
+    }
+}
+
+/// Time and work of one frame, by stage.
+#[derive(Clone, Debug, Default)]
+pub struct FrameStats {
+    /// What the VPL sampler reported.
+    pub sampler: SamplerStats,
+    /// VPL generation time.
+    pub vpl_time: Duration,
+    /// Primary rays / G-buffer time.
+    pub primary_time: Duration,
+    /// Gather (shadow rays and shading) time.
+    pub shadow_time: Duration,
+    /// Filter time.
+    pub filter_time: Duration,
+    /// Rays of the G-buffer and the gather.
+    pub rays: RayStats,
+    /// Energy kept and removed by clamping.
+    pub energy: GatherEnergy,
+}
+
+impl std::ops::AddAssign<&FrameStats> for FrameStats {
+    fn add_assign(&mut self, o: &FrameStats) {
+        self.vpl_time += o.vpl_time;
+        self.primary_time += o.primary_time;
+        self.shadow_time += o.shadow_time;
+        self.filter_time += o.filter_time;
+        self.rays += o.rays;
+        self.energy += o.energy;
+        self.sampler.candidates += o.sampler.candidates;
+        self.sampler.kept += o.sampler.kept;
+        self.sampler.paths += o.sampler.paths;
+        self.sampler.accepted += o.sampler.accepted;
+        self.sampler.proposed += o.sampler.proposed;
+        self.sampler.rays += o.sampler.rays;
+        self.sampler.time += o.sampler.time;
+    }
+}
+
+/// A rendered frame.
+#[derive(Debug)]
+pub struct Frame {
+    /// Final radiance per pixel (emission seen + filtered VPL light).
+    pub image: Vec<Vec3>,
+    /// The frame's G-buffer.
+    pub gbuffer: GBuffer,
+    /// The VPLs used.
+    pub vpls: VplSet,
+    /// Stage times and counts.
+    pub stats: FrameStats,
+}
+
+/// Renders one frame with VPLs from `sampler`; `seed` selects the VPL set and the jitter.
+pub fn render_frame(
+    scene: &Scene,
+    accel: &Accel,
+    camera: &Camera,
+    sampler: &mut dyn VplSampler,
+    settings: &FrameSettings,
+    seed: u64,
+) -> Frame {
+    let mut stats = FrameStats::default();
+    let t = Instant::now();
+    let (vpls, sstats) = sampler.sample(scene, accel, camera, settings.vpls, seed);
+    stats.vpl_time = t.elapsed();
+    stats.sampler = sstats;
+    gather_frame(scene, accel, camera, vpls, settings, seed, stats)
+}
+
+/// The frame pipeline after VPL sampling (G-buffer, gather, filter).
+pub fn gather_frame(
+    scene: &Scene,
+    accel: &Accel,
+    camera: &Camera,
+    vpls: VplSet,
+    settings: &FrameSettings,
+    seed: u64,
+    mut stats: FrameStats,
+) -> Frame {
+    let t = Instant::now();
+    let gbuf =
+        gather::gbuffer::trace(scene, accel, camera, seed, settings.jitter, settings.max_specular, &mut stats.rays);
+    stats.primary_time = t.elapsed();
+    let t = Instant::now();
+    let (n, m) = settings.interleave;
+    let inter = Interleave::new(&vpls, n, m);
+    let (gathered, energy) =
+        gather::gather(scene, accel, &gbuf, &vpls, &inter, g_bound(scene, settings.clamp), &mut stats.rays);
+    stats.energy = energy;
+    stats.shadow_time = t.elapsed();
+    let t = Instant::now();
+    let filtered = match settings.filter {
+        Some((angle, depth)) if n * m > 1 => {
+            let s = DiscontinuitySettings { n, m, max_normal_angle_deg: angle, max_relative_depth: depth };
+            discontinuity_filter(gbuf.width, gbuf.height, &gathered, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &s)
+        }
+        _ => gathered,
+    };
+    stats.filter_time = t.elapsed();
+    let image = filtered.iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
+    Frame { image, gbuffer: gbuf, vpls, stats }
+}
+
+/// How long and with which streams frames accumulate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Accumulation {
+    /// N frames (`Samples(N)`) or a wall-clock budget.
+    pub budget: Budget,
+    /// Seed of the first frame; frame i uses a hash of (seed, i).
+    pub seed: u64,
+    /// Accumulate albedo / normal / depth AOVs.
+    pub aovs: bool,
+}
+
+/// Accumulates independent frames (VPL sets) until the budget is spent: N frames for
+/// `Budget::Samples(N)`, or as many as fit in the time.
+pub fn render_progressive(
+    scene: &Scene,
+    accel: &Accel,
+    sampler: &mut dyn VplSampler,
+    settings: &FrameSettings,
+    acc: Accumulation,
+    progress: &ProgressBar,
+) -> (RenderOutput, FrameStats) {
+    let Accumulation { budget, seed, aovs } = acc;
+    let cam = &scene.camera;
+    let mut film = Film::new(cam.width, cam.height, FilterKind::Box, aovs);
+    let start = Instant::now();
+    let mut total = FrameStats::default();
+    match budget {
+        Budget::Samples(n) => progress.set_length(n as u64),
+        Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
+    }
+    let mut frames = 0u32;
+    loop {
+        let frame = render_frame(
+            scene,
+            accel,
+            cam,
+            sampler,
+            settings,
+            seed.wrapping_mul(0x9e37_79b9).wrapping_add(frames as u64),
+        );
+        let mut tile = FilmTile::new(0, 0, cam.width, cam.height, aovs);
+        for y in 0..cam.height {
+            for x in 0..cam.width {
+                let i = (y * cam.width + x) as usize;
+                tile.add(x, y, frame.image[i], 1.0);
+                if aovs {
+                    let g = &frame.gbuffer;
+                    tile.add_aov(x, y, &AovSample { albedo: g.albedo[i], normal: g.normal[i], depth: g.depth[i] });
+                }
+            }
+        }
+        film.merge_tile(&tile);
+        total += &frame.stats;
+        total.rays.samples += (cam.width * cam.height) as u64;
+        frames += 1;
+        let done = match budget {
+            Budget::Samples(n) => {
+                progress.set_position(frames as u64);
+                frames >= n
+            }
+            Budget::Time(t) => {
+                progress.set_position(start.elapsed().as_millis().min(t.as_millis()) as u64);
+                start.elapsed() >= t
+            }
+        };
+        if done {
+            break;
+        }
+    }
+    progress.finish_and_clear();
+    let mut rays = total.rays;
+    rays += total.sampler.rays;
+    (RenderOutput { film, stats: rays, spp: frames, elapsed: start.elapsed() }, total)
+}

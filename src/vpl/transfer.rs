@@ -1,0 +1,125 @@
+//! How much a VPL gives a receiving point: `L_v · f_s · G · V` (papers/002 §4.4; DESIGN §4),
+//! the kernel shared by the gather, BIR's power estimates and MIR's normalisation.
+
+use glam::Vec3;
+
+use super::set::VplSet;
+use crate::accel::{Accel, offset_origin};
+use crate::bsdf::Bsdf;
+use crate::scene::{Camera, Scene, SurfacePoint};
+use crate::stats::RayStats;
+
+/// A camera-visible surface point ready to receive light (a G-buffer entry).
+#[derive(Clone, Copy, Debug)]
+pub struct Receiver {
+    /// The surface point.
+    pub sp: SurfacePoint,
+    /// Its BSDF, oriented towards the viewer.
+    pub bsdf: Bsdf,
+    /// Direction towards the viewer.
+    pub wo: Vec3,
+    /// Throughput from the camera (1, or the product of specular bounces).
+    pub beta: Vec3,
+}
+
+/// Bound on G for `--clamp c`: `c / D²` with D the diagonal of the scene bounds, so the clamp
+/// means the same at every scene scale; `c = 0` disables clamping.
+pub fn g_bound(scene: &Scene, clamp: f32) -> f32 {
+    if clamp <= 0.0 {
+        return f32::INFINITY;
+    }
+    let d = scene.bounds.diagonal().max(1e-30);
+    clamp / (d * d)
+}
+
+/// The unoccluded contribution of VPL `i` to receiver `r`: returns (clamped, unclamped)
+/// radiance towards the viewer, before visibility; `None` when it is zero.
+#[inline]
+pub fn unshadowed(set: &VplSet, i: usize, r: &Receiver, g_max: f32) -> Option<(Vec3, Vec3)> {
+    let d = set.position[i] - r.sp.p;
+    let d2 = d.length_squared();
+    if !(d2 > 0.0) {
+        return None;
+    }
+    let dist = d2.sqrt();
+    let wi = d / dist;
+    let cos_v = set.cos_at(i, -wi);
+    if cos_v <= 0.0 {
+        return None;
+    }
+    let cos_r = r.bsdf.abs_cos(wi);
+    let f = r.bsdf.f(r.wo, wi);
+    if f == Vec3::ZERO {
+        return None;
+    }
+    let le = set.radiance(i, -wi);
+    let g = cos_v * cos_r / d2;
+    let base = r.beta * le * f;
+    Some((base * g.min(g_max), base * g))
+}
+
+/// The shadow-ray segment from a receiver to VPL `i` (origin offset off the surface, end
+/// stopping short of the VPL's own surface).
+#[inline]
+pub fn shadow_segment(scene: &Scene, set: &VplSet, i: usize, r: &Receiver) -> (Vec3, Vec3) {
+    let target = set.position[i];
+    let origin = offset_origin(&r.sp, &scene.mesh.corners(r.sp.tri), target - r.sp.p);
+    (origin, target - origin)
+}
+
+/// Fraction of a shadow segment that is tested (the VPL's own surface is not an occluder).
+pub const SHADOW_T_MAX: f32 = 1.0 - 1e-4;
+
+/// Contribution of VPL `i` to `r` with visibility, clamped at `g_max` (single rays).
+pub fn contribution(
+    scene: &Scene,
+    accel: &Accel,
+    set: &VplSet,
+    i: usize,
+    r: &Receiver,
+    g_max: f32,
+    stats: &mut RayStats,
+) -> Vec3 {
+    let Some((c, _)) = unshadowed(set, i, r, g_max) else { return Vec3::ZERO };
+    let (o, d) = shadow_segment(scene, set, i, r);
+    stats.shadow += 1;
+    if accel.occluded(o, d, SHADOW_T_MAX) { Vec3::ZERO } else { c }
+}
+
+/// Traces the camera ray through `raster` to the first non-specular surface (following up to
+/// `max_specular` mirror / glass bounces); returns the receiver and the emission seen on the way.
+pub fn primary_receiver(
+    scene: &Scene,
+    accel: &Accel,
+    camera: &Camera,
+    raster: glam::Vec2,
+    u_lens: glam::Vec2,
+    u_specular: &mut impl FnMut() -> f32,
+    max_specular: u32,
+    stats: &mut RayStats,
+) -> (Option<Receiver>, Vec3) {
+    let mut ray = camera.generate_ray(raster, u_lens);
+    let mut beta = Vec3::ONE;
+    let mut emitted = Vec3::ZERO;
+    for bounce in 0..=max_specular {
+        stats.closest += 1;
+        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { return (None, emitted) };
+        let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
+        let wo = -ray.dir;
+        emitted += beta * scene.emitted(hit.tri, sp.ng, sp.uv, wo);
+        let bsdf = Bsdf::new(scene.material_of(hit.tri).bsdf_kind(sp.uv, &scene.textures), sp.ns, sp.ng, wo);
+        if !bsdf.is_delta() {
+            return (Some(Receiver { sp, bsdf, wo, beta }), emitted);
+        }
+        if bounce == max_specular {
+            break;
+        }
+        let Some(bs) = bsdf.sample(wo, u_specular(), glam::Vec2::splat(0.5), crate::bsdf::TransportMode::Radiance)
+        else {
+            break;
+        };
+        beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf_w);
+        ray = crate::scene::Ray { origin: offset_origin(&sp, &scene.mesh.corners(hit.tri), bs.wi), dir: bs.wi };
+    }
+    (None, emitted)
+}
