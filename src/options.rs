@@ -147,7 +147,7 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with = "time")]
     pub spp: Option<u32>,
     /// Render progressively for this many seconds instead of a fixed sample count.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub time: Option<f64>,
     /// Seed of every random stream: the same seed gives the same image at any thread count.
     #[arg(long, default_value_t = 0)]
@@ -169,7 +169,7 @@ pub struct RenderArgs {
     pub interleave: (u32, u32),
     /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
     /// (unbiased, noisier near corners).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
     pub clamp: f32,
     /// Do not apply the discontinuity buffer after the gather (ir mode).
     #[arg(long)]

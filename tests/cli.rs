@@ -1,0 +1,181 @@
+//! The command line as a new user meets it: the default render works, every scene file in
+//! scenes/ renders, and bad input gives one clear error line naming the file, a non-zero exit
+//! code and never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn mirage(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mirage")).args(args).output().expect("mirage runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("cli").join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The failure contract: exit code ≠ 0, exactly one line on stderr starting with
+/// "mirage: error:", naming `what`, and no panic.
+fn assert_clean_failure(o: &Output, what: &str) {
+    let err = stderr(o);
+    assert!(!o.status.success(), "expected failure for {what}, got success");
+    assert!(!err.contains("panicked"), "panic for {what}: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "expected one error line for {what}: {err}");
+    assert!(lines[0].starts_with("mirage: error:"), "{err}");
+    assert!(lines[0].contains(what), "error line should name '{what}': {err}");
+}
+
+#[test]
+fn default_render_writes_exr_and_png_of_the_cornell_box() {
+    let dir = tmp("default");
+    let out = dir.join("cornell.exr");
+    let o =
+        mirage(&["render", "--spp", "2", "--width", "32", "--height", "32", "--quiet", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = mirage::output::read_exr(&out).unwrap();
+    assert_eq!((img.width, img.height), (32, 32));
+    assert_eq!(img.non_finite_count(), 0);
+    assert!(img.mean_luminance() > 0.01);
+    assert!(out.with_extension("png").exists());
+    let summary = String::from_utf8_lossy(&o.stdout);
+    assert!(summary.contains("spp") && summary.contains("Mrays/s"), "{summary}");
+}
+
+#[test]
+fn every_scene_file_renders_in_every_mode() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&scenes)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "gltf"))
+        .collect();
+    files.push(scenes.join("cornell-obj/cornell.obj"));
+    files.sort();
+    assert!(files.len() >= 8, "{files:?}");
+    let dir = tmp("scenes");
+    for f in &files {
+        for mode in ["pt", "bdpt", "ir"] {
+            let out = dir.join(format!("{}-{mode}.exr", f.file_stem().unwrap().to_string_lossy()));
+            let o = mirage(&[
+                "render",
+                f.to_str().unwrap(),
+                "--mode",
+                mode,
+                "--spp",
+                "1",
+                "--width",
+                "24",
+                "--height",
+                "16",
+                "--quiet",
+                "-o",
+                out.to_str().unwrap(),
+            ]);
+            assert!(o.status.success(), "{} {mode}: {}", f.display(), stderr(&o));
+            let img = mirage::output::read_exr(&out).unwrap();
+            assert_eq!(img.non_finite_count(), 0, "{} {mode}", f.display());
+        }
+    }
+}
+
+#[test]
+fn bad_inputs_fail_cleanly_naming_the_file() {
+    let dir = tmp("bad");
+    let run = |file: &Path| {
+        mirage(&["render", file.to_str().unwrap(), "--spp", "1", "--width", "8", "--height", "8", "--quiet"])
+    };
+
+    // Missing file.
+    let missing = dir.join("nope.gltf");
+    assert_clean_failure(&run(&missing), "nope.gltf");
+
+    // Unknown file extension.
+    let fbx = dir.join("model.fbx");
+    std::fs::write(&fbx, b"x").unwrap();
+    assert_clean_failure(&run(&fbx), "model.fbx");
+
+    // Broken JSON.
+    let broken = dir.join("broken.gltf");
+    std::fs::write(&broken, b"{ \"asset\": { \"version\": \"2.0\" ").unwrap();
+    assert_clean_failure(&run(&broken), "broken.gltf");
+
+    // Truncated .glb: take a valid scene, wrap it as GLB, cut it.
+    let json = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.gltf")).unwrap();
+    let mut glb = Vec::new();
+    let pad = (4 - json.len() % 4) % 4;
+    let chunk_len = json.len() + pad;
+    glb.extend_from_slice(b"glTF");
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&((12 + 8 + chunk_len) as u32).to_le_bytes());
+    glb.extend_from_slice(&(chunk_len as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json);
+    glb.extend(std::iter::repeat_n(b' ', pad));
+    let whole = dir.join("whole.glb");
+    std::fs::write(&whole, &glb).unwrap();
+    let ok = run(&whole);
+    assert!(ok.status.success(), "the untruncated GLB renders: {}", stderr(&ok));
+    let cut = dir.join("cut.glb");
+    std::fs::write(&cut, &glb[..glb.len() / 2]).unwrap();
+    assert_clean_failure(&run(&cut), "cut.glb");
+
+    // NaN vertex (OBJ).
+    let nan = dir.join("nan.obj");
+    std::fs::write(&nan, "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n").unwrap();
+    assert_clean_failure(&run(&nan), "nan.obj");
+
+    // No emitter.
+    let dark = dir.join("dark.obj");
+    std::fs::write(&dark, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert_clean_failure(&run(&dark), "dark.obj");
+
+    // Unknown required glTF extension.
+    let text = String::from_utf8(json).unwrap();
+    let ext = dir.join("ext.gltf");
+    assert!(text.contains("\"extensionsUsed\": ["));
+    let edited = text.replacen(
+        "\"extensionsUsed\": [",
+        "\"extensionsRequired\": [\"KHR_unheard_of\"], \"extensionsUsed\": [\"KHR_unheard_of\", ",
+        1,
+    );
+    std::fs::write(&ext, edited).unwrap();
+    let o = run(&ext);
+    assert_clean_failure(&o, "ext.gltf");
+    assert!(stderr(&o).contains("KHR_unheard_of"));
+}
+
+#[test]
+fn absurd_parameters_are_rejected_with_the_flag_named() {
+    for (args, flag) in [
+        (vec!["render", "--spp", "0"], "--spp"),
+        (vec!["render", "--time", "-3"], "--time"),
+        (vec!["render", "--width", "0"], "--width"),
+        (vec!["render", "--threads", "0"], "--threads"),
+        (vec!["render", "--mode", "ir", "--vpls", "0"], "--vpls"),
+        (vec!["render", "--mode", "ir", "--clamp", "-1"], "--clamp"),
+        (vec!["render", "--fov-y", "200"], "field of view"),
+        (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
+    ] {
+        let o = mirage(&args);
+        assert!(!o.status.success(), "{args:?} should fail");
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(err.contains(flag), "{args:?}: error should mention {flag}: {err}");
+    }
+}
+
+#[test]
+fn info_and_diff_report_on_files() {
+    let o = mirage(&["info", "cornell"]);
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("triangles  32") && s.contains("emitters"), "{s}");
+    let o = mirage(&["diff", "missing-a.exr", "missing-b.exr"]);
+    assert_clean_failure(&o, "missing-a.exr");
+}
