@@ -33,4 +33,5 @@ pub mod load;
 pub mod sampling;
 pub mod scene;
 pub mod stats;
+pub mod view;
 pub mod vpl;

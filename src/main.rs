@@ -28,6 +28,9 @@ struct Cli {
 enum Command {
     /// Render an image to EXR and PNG.
     Render(Box<RenderArgs>),
+    /// Walk through a scene in a window (MIR + packet gather every frame), or run the same frame
+    /// loop headless for benchmarks.
+    View(Box<mirage::view::ViewArgs>),
     /// Describe a scene: triangles, emitters and their power, bounds, camera.
     Info {
         /// Scene file or built-in scene name (default: the built-in Cornell box).
@@ -46,6 +49,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => cmd_render(&args),
+        Command::View(args) => mirage::view::run(&args).map_err(|e| anyhow::anyhow!(e)),
         Command::Info { scene } => cmd_info(scene.as_deref()),
         Command::Diff { a, b } => cmd_diff(&a, &b),
     };

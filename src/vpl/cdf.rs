@@ -113,6 +113,10 @@ impl VplSampler for SirCdf {
         "sir-cdf"
     }
 
+    fn reset(&mut self) {
+        self.camera = None;
+    }
+
     fn sample(&mut self, scene: &Scene, accel: &Accel, camera: &Camera, m: usize, seed: u64) -> (VplSet, SamplerStats) {
         let t0 = Instant::now();
         let mut rays = RayStats::default();

@@ -52,4 +52,14 @@ pub trait VplSampler: Send {
     /// Produces a VPL set whose gathered image is an (unbiased, for `--clamp 0`) estimate of the
     /// camera's image; `seed` selects independent sets.
     fn sample(&mut self, scene: &Scene, accel: &Accel, camera: &Camera, m: usize, seed: u64) -> (VplSet, SamplerStats);
+
+    /// Forgets any state carried between calls (a Metropolis chain, a light CDF), so the next
+    /// `sample` starts afresh. Stateless samplers ignore it.
+    fn reset(&mut self) {}
+
+    /// Tells a stateful sampler that the camera jumped (it should not reuse its chain) or moved
+    /// a little (it may continue it). Stateless samplers ignore it.
+    fn camera_moved(&mut self, jumped: bool) {
+        let _ = jumped;
+    }
 }
