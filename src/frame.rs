@@ -32,6 +32,10 @@ pub struct FrameSettings {
     pub max_specular: u32,
     /// Jitter primary rays inside pixels (accumulating frames then anti-aliases).
     pub jitter: bool,
+    /// Skip VPLs closer than this to the receiver (0 for rendering). Tests use it to compare
+    /// unclamped VPL estimates with the path tracer on a domain where both have finite
+    /// variance (see `offline::pt::PathFilter`).
+    pub min_distance: f32,
 }
 
 impl FrameSettings {
@@ -44,6 +48,7 @@ impl FrameSettings {
             filter: Some((20.0, 0.05)),
             max_specular: 4,
             jitter: true,
+            min_distance: 0.0,
         }
     }
 
@@ -87,6 +92,11 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
         self.sampler.proposed += o.sampler.proposed;
         self.sampler.rays += o.sampler.rays;
         self.sampler.time += o.sampler.time;
+        for w in &o.sampler.warnings {
+            if !self.sampler.warnings.contains(w) {
+                self.sampler.warnings.push(w.clone());
+            }
+        }
     }
 }
 
@@ -137,8 +147,9 @@ pub fn gather_frame(
     let t = Instant::now();
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
+    let g_max = g_bound(scene, settings.clamp);
     let (gathered, energy) =
-        gather::gather(scene, accel, &gbuf, &vpls, &inter, g_bound(scene, settings.clamp), &mut stats.rays);
+        gather::gather(scene, accel, &gbuf, &vpls, &inter, g_max, settings.min_distance, &mut stats.rays);
     stats.energy = energy;
     stats.shadow_time = t.elapsed();
     let t = Instant::now();

@@ -146,13 +146,16 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         png_path.display()
     );
     if let Some(fs) = frame_stats {
+        for w in &fs.sampler.warnings {
+            eprintln!("mirage: warning: {w}");
+        }
         let frames = out.spp.max(1) as f64;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
         println!(
             "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s), filter {:.1} ms; clamping removed {:.2} % of the gathered energy{}",
             out.spp,
             options.frame.vpls,
-            options.vpl_sampler.build(1).name(),
+            options.vpl_sampler.build_with(&options.sampler).name(),
             fs.vpl_time.as_secs_f64() * 1e3 / frames,
             fs.primary_time.as_secs_f64() * 1e3 / frames,
             fs.shadow_time.as_secs_f64() * 1e3 / frames,

@@ -22,9 +22,43 @@ pub enum Mode {
     /// Bidirectional path tracing: all (s, t) strategies with power-heuristic MIS and
     /// light-tracing splats.
     Bdpt,
-    /// Instant radiosity: VPLs from --vpl-sampler, gathered with interleaved sampling and the
-    /// discontinuity buffer; independent VPL sets accumulate under --spp / --time.
+    /// Instant radiosity: VPLs from --vpl-sampler (sir, sir-cdf, bir), gathered with
+    /// interleaved sampling and the discontinuity buffer; independent VPL sets accumulate under
+    /// --spp / --time.
     Ir,
+    /// Metropolis instant radiosity (the default): VPLs from an MH or MTMH chain over complete
+    /// paths (--vpl-sampler mh|mtmh, --kernel, --candidates), gathered like ir.
+    Mir,
+}
+
+/// Mutation kernels of the MIR chains.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum KernelArg {
+    /// Path-space bidirectional mutation: regenerate the light sub-path from a cut, or the
+    /// camera end (Veach & Guibas 1997, as papers/002 §7.1).
+    Bidir,
+    /// Primary-sample-space mutation: small perturbations of the random numbers or a large step
+    /// (Kelemen et al. 2002).
+    Pss,
+}
+
+/// Settings of the samplers beyond their kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SamplerConfig {
+    /// Longest light sub-path (vertices) for SIR-style samplers.
+    pub max_depth: u32,
+    /// MIR mutation kernel.
+    pub kernel: KernelArg,
+    /// MTMH candidates.
+    pub candidates: usize,
+    /// MIR: choose lights with a light-source CDF.
+    pub light_cdf: bool,
+}
+
+impl Default for SamplerConfig {
+    fn default() -> Self {
+        SamplerConfig { max_depth: 64, kernel: KernelArg::Bidir, candidates: 10, light_cdf: false }
+    }
 }
 
 /// VPL sampling strategies.
@@ -36,15 +70,36 @@ pub enum VplSamplerArg {
     SirCdf,
     /// Bidirectional instant radiosity: R·m candidates from light and camera paths, resampled.
     Bir,
+    /// Metropolis instant radiosity with a Metropolis–Hastings chain.
+    Mh,
+    /// Metropolis instant radiosity with a multiple-try Metropolis–Hastings chain (default of
+    /// --mode mir).
+    Mtmh,
 }
 
 impl VplSamplerArg {
-    /// The sampler object.
+    /// The sampler object with default settings.
     pub fn build(self, max_depth: u32) -> Box<dyn crate::vpl::VplSampler> {
-        match self {
-            VplSamplerArg::Sir => Box::new(crate::vpl::sir::Sir::new(max_depth)),
-            VplSamplerArg::SirCdf => Box::new(crate::vpl::cdf::SirCdf::new(max_depth)),
-            VplSamplerArg::Bir => Box::new(crate::vpl::bir::Bir::new(max_depth)),
+        self.build_with(&SamplerConfig { max_depth, ..Default::default() })
+    }
+
+    /// True for the Metropolis samplers.
+    pub fn is_metropolis(self) -> bool {
+        matches!(self, VplSamplerArg::Mh | VplSamplerArg::Mtmh)
+    }
+
+    /// The sampler object.
+    pub fn build_with(self, c: &SamplerConfig) -> Box<dyn crate::vpl::VplSampler> {
+        use crate::vpl::metropolis::{Chain, Mir, MirSettings};
+        use crate::vpl::mutation::{Bidirectional, PrimarySample};
+        let mir = |chain| MirSettings { chain, light_cdf: c.light_cdf, ..MirSettings::mtmh() };
+        let chain = if self == VplSamplerArg::Mh { Chain::Mh } else { Chain::Mtmh(c.candidates.max(1)) };
+        match (self, c.kernel) {
+            (VplSamplerArg::Sir, _) => Box::new(crate::vpl::sir::Sir::new(c.max_depth)),
+            (VplSamplerArg::SirCdf, _) => Box::new(crate::vpl::cdf::SirCdf::new(c.max_depth)),
+            (VplSamplerArg::Bir, _) => Box::new(crate::vpl::bir::Bir::new(c.max_depth)),
+            (_, KernelArg::Bidir) => Box::new(Mir::new(Bidirectional::default(), mir(chain))),
+            (_, KernelArg::Pss) => Box::new(Mir::new(PrimarySample::default(), mir(chain))),
         }
     }
 }
@@ -56,6 +111,7 @@ impl Mode {
             Mode::Pt => "pt",
             Mode::Bdpt => "bdpt",
             Mode::Ir => "ir",
+            Mode::Mir => "mir",
         }
     }
 }
@@ -141,7 +197,7 @@ pub struct RenderArgs {
     /// Cornell box.
     pub scene: Option<String>,
     /// Rendering mode.
-    #[arg(long, value_enum, default_value_t = Mode::Pt)]
+    #[arg(long, value_enum, default_value_t = Mode::Mir)]
     pub mode: Mode,
     /// Samples per pixel (default 64 when no --time is given).
     #[arg(long, conflicts_with = "time")]
@@ -158,9 +214,18 @@ pub struct RenderArgs {
     /// Pixel reconstruction filter (offline modes).
     #[arg(long, value_enum, default_value_t = FilterArg::Box)]
     pub pixel_filter: FilterArg,
-    /// VPL sampler (ir mode).
-    #[arg(long, value_enum, default_value_t = VplSamplerArg::Sir)]
-    pub vpl_sampler: VplSamplerArg,
+    /// VPL sampler (default: sir for --mode ir, mtmh for --mode mir).
+    #[arg(long, value_enum)]
+    pub vpl_sampler: Option<VplSamplerArg>,
+    /// Mutation kernel of the mir chains.
+    #[arg(long, value_enum, default_value_t = KernelArg::Bidir)]
+    pub kernel: KernelArg,
+    /// Candidates per MTMH step (p).
+    #[arg(long, default_value_t = 10)]
+    pub candidates: usize,
+    /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
+    #[arg(long)]
+    pub light_cdf: bool,
     /// VPLs per frame (ir mode).
     #[arg(long, default_value_t = 256)]
     pub vpls: usize,
@@ -230,8 +295,10 @@ pub struct RenderOptions {
     pub tonemap: Tonemap,
     /// bdpt: the strategy to write alone as well.
     pub debug_strategy: Option<(usize, usize)>,
-    /// ir: the VPL sampler.
+    /// ir / mir: the VPL sampler.
     pub vpl_sampler: VplSamplerArg,
+    /// ir / mir: sampler settings.
+    pub sampler: SamplerConfig,
     /// ir: the frame pipeline settings.
     pub frame: crate::frame::FrameSettings,
 }
@@ -282,6 +349,20 @@ impl RenderArgs {
         if !angle_ok || !depth_ok {
             return Err(OptionsError("--filter-angle must be in (0, 180] and --filter-depth > 0".into()));
         }
+        let vpl_sampler = match (self.mode, self.vpl_sampler) {
+            (Mode::Mir, None) => VplSamplerArg::Mtmh,
+            (_, None) => VplSamplerArg::Sir,
+            (Mode::Mir, Some(s)) if !s.is_metropolis() => {
+                return Err(OptionsError(format!(
+                    "--mode mir takes --vpl-sampler mh or mtmh; use --mode ir for {}",
+                    s.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default()
+                )));
+            }
+            (_, Some(s)) => s,
+        };
+        if self.candidates == 0 || self.candidates > 1000 {
+            return Err(OptionsError(format!("--candidates {} is outside 1…1000", self.candidates)));
+        }
         if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
             return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
         }
@@ -310,7 +391,13 @@ impl RenderArgs {
             offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },
             tonemap,
             debug_strategy: self.debug_strategy,
-            vpl_sampler: self.vpl_sampler,
+            vpl_sampler,
+            sampler: SamplerConfig {
+                max_depth: self.max_depth,
+                kernel: self.kernel,
+                candidates: self.candidates,
+                light_cdf: self.light_cdf,
+            },
             frame: crate::frame::FrameSettings {
                 vpls: self.vpls,
                 interleave: self.interleave,
@@ -318,6 +405,7 @@ impl RenderArgs {
                 filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
                 max_specular: 8,
                 jitter: true,
+                min_distance: 0.0,
             },
         })
     }

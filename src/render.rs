@@ -117,8 +117,8 @@ pub fn render(
             let opts = BdptOptions { max_depth: options.offline.max_depth, only: None, path_edges: None };
             (offline::render_bdpt(scene, accel, &options.offline, &opts, progress), None)
         }
-        Mode::Ir => {
-            let mut sampler = options.vpl_sampler.build(options.offline.max_depth);
+        Mode::Ir | Mode::Mir => {
+            let mut sampler = options.vpl_sampler.build_with(&options.sampler);
             let o = &options.offline;
             let acc = frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs };
             let (out, stats) = frame::render_progressive(scene, accel, sampler.as_mut(), &options.frame, acc, progress);

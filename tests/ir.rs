@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Estimate, assert_agree};
+use common::{Estimate, assert_agree_blocks};
 use glam::{Vec3, vec3};
 use indicatif::ProgressBar;
 use mirage::accel::Accel;
@@ -12,6 +12,7 @@ use mirage::filter::{DiscontinuitySettings, discontinuity_filter};
 use mirage::frame::{self, FrameSettings};
 use mirage::load::SceneDesc;
 use mirage::load::builtin::{self, Builder, cuboid, quad};
+use mirage::offline::pt::PathFilter;
 use mirage::offline::{self, Budget, OfflineSettings};
 use mirage::options::VplSamplerArg;
 use mirage::scene::{CameraSettings, Scene};
@@ -79,7 +80,7 @@ fn unclamped_unfiltered_ir_converges_to_pt_for_every_sampler() {
         let reference = pt_estimate(&s, &a, 12, 32, 77);
         for kind in [VplSamplerArg::Sir, VplSamplerArg::SirCdf, VplSamplerArg::Bir] {
             let e = ir_estimate(&s, &a, kind, &settings, 12, 8, 5);
-            assert_agree(&format!("{name}-ir-{kind:?}-vs-pt"), &e, &reference, 8);
+            assert_agree_blocks(&format!("{name}-ir-{kind:?}-vs-pt"), &e, &reference, 8);
         }
     }
 }

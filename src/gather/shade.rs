@@ -47,8 +47,10 @@ pub fn gather(
     vpls: &VplSet,
     inter: &Interleave,
     g_max: f32,
+    min_distance: f32,
     stats: &mut RayStats,
 ) -> (Vec<Vec3>, GatherEnergy) {
+    let min_d2 = min_distance * min_distance;
     let w = gbuf.width;
     let rows: Vec<(Vec<Vec3>, RayStats, GatherEnergy)> = (0..gbuf.height)
         .into_par_iter()
@@ -63,6 +65,9 @@ pub fn gather(
                     let mut removed = Vec3::ZERO;
                     for &i in &inter.subsets[k] {
                         let i = i as usize;
+                        if min_d2 > 0.0 && (vpls.position[i] - r.sp.p).length_squared() < min_d2 {
+                            continue;
+                        }
                         let Some((c, full)) = unshadowed(vpls, i, r, g_max) else { continue };
                         let (o, d) = shadow_segment(scene, vpls, i, r);
                         st.shadow += 1;

@@ -180,16 +180,27 @@ pub fn render_pt(scene: &Scene, accel: &Accel, settings: &OfflineSettings, progr
     render_pt_of_length(scene, accel, settings, None, progress)
 }
 
-/// [`render_pt`] restricted to paths of exactly `edges` segments when given.
+/// [`render_pt`] restricted to paths with a number of segments in the inclusive range `edges`.
 pub fn render_pt_of_length(
     scene: &Scene,
     accel: &Accel,
     settings: &OfflineSettings,
-    edges: Option<u32>,
+    edges: Option<(u32, u32)>,
+    progress: &ProgressBar,
+) -> RenderOutput {
+    render_pt_filtered(scene, accel, settings, &pt::PathFilter { edges, ..Default::default() }, progress)
+}
+
+/// [`render_pt`] restricted to the paths `filter` admits.
+pub fn render_pt_filtered(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &OfflineSettings,
+    filter: &pt::PathFilter,
     progress: &ProgressBar,
 ) -> RenderOutput {
     render_progressive(scene, settings, progress, false, |raster, sampler, _tile, st| {
         let ray = scene.camera.generate_ray(raster, sampler.next_2d());
-        pt::radiance_of_length(scene, accel, ray, sampler, settings.max_depth, edges, st)
+        pt::radiance_of_length(scene, accel, ray, sampler, settings.max_depth, filter, st)
     })
 }

@@ -25,22 +25,37 @@ pub fn radiance(
     max_depth: u32,
     stats: &mut RayStats,
 ) -> (Vec3, AovSample) {
-    radiance_of_length(scene, accel, ray, sampler, max_depth, None, stats)
+    radiance_of_length(scene, accel, ray, sampler, max_depth, &PathFilter::default(), stats)
 }
 
-/// [`radiance`] restricted to paths of exactly `edges` segments (camera to light) when given:
-/// emission found after d bounces has d + 1 edges, next-event estimation after d bounces d + 2.
-/// Used to check bidirectional strategies length by length.
+/// Restricts the paths an estimate counts, for comparing estimators on a common domain.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PathFilter {
+    /// Only paths whose number of segments (camera to light) lies in this inclusive range.
+    pub edges: Option<(u32, u32)>,
+    /// Only paths whose second segment (first visible point x₁ to the next vertex x₂) is at
+    /// least this long. Instant radiosity without clamping has infinite variance near x₁ = x₂
+    /// (the 1/d² of G); on this domain both it and the path tracer have finite variance, so
+    /// their agreement can be tested statistically.
+    pub min_second_segment: f32,
+}
+
+/// [`radiance`] restricted by `filter`: emission found after d bounces has d + 1 edges,
+/// next-event estimation after d bounces d + 2. Used to check bidirectional strategies length
+/// by length and VPL estimators on a common domain.
 pub fn radiance_of_length(
     scene: &Scene,
     accel: &Accel,
     ray: Ray,
     sampler: &mut impl Sampler,
     max_depth: u32,
-    edges: Option<u32>,
+    filter: &PathFilter,
     stats: &mut RayStats,
 ) -> (Vec3, AovSample) {
-    let counts = |e: u32| edges.is_none_or(|k| k == e);
+    let edges = filter.edges;
+    let min_seg = filter.min_second_segment;
+    let counts = |e: u32| edges.is_none_or(|(lo, hi)| (lo..=hi).contains(&e));
+    let mut x1 = Vec3::ZERO;
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut aov = AovSample::default();
@@ -54,6 +69,11 @@ pub fn radiance_of_length(
         stats.closest += 1;
         let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { break };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
+        if depth == 0 {
+            x1 = sp.p;
+        } else if depth == 1 && min_seg > 0.0 && (sp.p - x1).length() < min_seg {
+            break;
+        }
         let wo = -ray.dir;
         let material = scene.material_of(hit.tri);
 
@@ -73,7 +93,7 @@ pub fn radiance_of_length(
         if depth == 0 {
             aov = AovSample { albedo: bsdf.albedo(), normal: bsdf.frame.n, depth: hit.t };
         }
-        if depth >= max_depth || edges.is_some_and(|k| depth + 1 >= k) {
+        if depth >= max_depth || edges.is_some_and(|(_, hi)| depth + 1 >= hi) {
             break;
         }
         let corners = scene.mesh.corners(hit.tri);
@@ -84,6 +104,7 @@ pub fn radiance_of_length(
         if !bsdf.is_delta()
             && counts(depth + 2)
             && let Some(ls) = scene.sample_li(sp.p, u_light, u_light_pos)
+            && (depth > 0 || ls.dist >= min_seg)
         {
             let f = bsdf.f(wo, ls.wi) * bsdf.abs_cos(ls.wi);
             if f != Vec3::ZERO && ls.li != Vec3::ZERO {

@@ -295,6 +295,37 @@ impl Scene {
         }
     }
 
+    /// Samples an emission direction from a point of `light` whose emitting-face normal is `n`
+    /// (cosine-weighted about `n`, uniform on the sphere or in the spot cone): the direction,
+    /// its solid-angle density (as [`pdf_light_direction`](Self::pdf_light_direction)) and the
+    /// directional factor of the emission (1, or the spot falloff).
+    pub fn sample_light_direction(&self, light: u32, n: Vec3, u: Vec2) -> Option<(Vec3, f32, f32)> {
+        match self.lights.list[light as usize] {
+            Light::Area { two_sided, .. } => {
+                let (n, u) = if two_sided {
+                    if u.x < 0.5 { (n, Vec2::new(u.x * 2.0, u.y)) } else { (-n, Vec2::new(u.x * 2.0 - 1.0, u.y)) }
+                } else {
+                    (n, u)
+                };
+                let local = sample_cosine_hemisphere(u);
+                if local.z <= 0.0 {
+                    return None;
+                }
+                let dir = Frame::from_normal(n).to_world(local);
+                Some((dir, self.pdf_light_direction(light, n, dir), 1.0))
+            }
+            Light::Point { .. } => Some((sample_uniform_sphere(u), uniform_sphere_pdf_w(), 1.0)),
+            Light::Spot { frame, cos_inner, cos_outer, .. } => {
+                let local = sample_uniform_cone(u, cos_outer);
+                Some((
+                    frame.to_world(local),
+                    uniform_cone_pdf_w(cos_outer),
+                    spot_falloff(local.z, cos_inner, cos_outer),
+                ))
+            }
+        }
+    }
+
     /// Starts a light path: a light ∝ power, a point on it, and an emission direction.
     pub fn sample_le(&self, u_light: f32, u_pos: Vec2, u_dir: Vec2) -> Option<EmissionSample> {
         self.sample_le_with(&self.lights.distribution, u_light, u_pos, u_dir)

@@ -6,6 +6,9 @@
 
 pub mod bir;
 pub mod cdf;
+pub mod metropolis;
+pub mod mirpath;
+pub mod mutation;
 pub mod set;
 pub mod sir;
 pub mod transfer;
@@ -35,6 +38,8 @@ pub struct SamplerStats {
     pub proposed: u64,
     /// Rays traced.
     pub rays: RayStats,
+    /// Things the user should know (no light reaches the camera, a chain hit its bound...).
+    pub warnings: Vec<String>,
 }
 
 impl SamplerStats {

@@ -23,51 +23,62 @@ const TAG_PATHS: u64 = 0x5349_525f_5041_5448;
 /// Stream tag of the pilot.
 const TAG_PILOT: u64 = 0x5349_525f_5049_4c54;
 
+/// The VPL at light sub-path vertex `v` (index `i` along the path), its radiance scaled by
+/// `scale`; `None` for specular vertices (they cannot be connected to).
+pub fn vpl_of_vertex(scene: &Scene, v: &Vertex, i: usize, scale: f32, group: u32) -> Option<Vpl> {
+    match v.kind {
+        VertexKind::Light => {
+            if !(v.pdf_fwd > 0.0) {
+                return None;
+            }
+            let inv_pdf = scale / v.pdf_fwd;
+            let (radiance, lobe, normal, flags) = match scene.lights.list[v.light as usize] {
+                Light::Area { two_sided, .. } => {
+                    (v.beta * inv_pdf, None, v.ng, ON_LIGHT | if two_sided { TWO_SIDED } else { 0 })
+                }
+                Light::Point { intensity, .. } => (intensity * inv_pdf, None, Vec3::ZERO, ON_LIGHT),
+                Light::Spot { intensity, frame, cos_inner, cos_outer, .. } => (
+                    intensity * inv_pdf,
+                    Some(VplLobe::Spot { axis: frame.n, cos_inner, cos_outer }),
+                    Vec3::ZERO,
+                    ON_LIGHT,
+                ),
+            };
+            Some(Vpl { position: v.p, normal, radiance, lobe, count: 1, flags, length: 0, group })
+        }
+        VertexKind::Surface => {
+            let bsdf = v.bsdf?;
+            if bsdf.is_delta() {
+                return None;
+            }
+            let beta = v.beta * scale;
+            let flat = (bsdf.frame.n - bsdf.ng).length_squared() < 1e-10;
+            let (radiance, lobe) = match bsdf.kind {
+                crate::bsdf::BsdfKind::Lambert { albedo } if flat => {
+                    (beta * albedo * std::f32::consts::FRAC_1_PI, None)
+                }
+                _ => (beta, Some(VplLobe::Surface { bsdf, wo: v.wo })),
+            };
+            Some(Vpl {
+                position: v.p,
+                normal: bsdf.frame.n,
+                radiance,
+                lobe,
+                count: 1,
+                flags: 0,
+                length: i.min(255) as u8,
+                group,
+            })
+        }
+        VertexKind::Camera => None,
+    }
+}
+
 /// Appends the VPLs of one light sub-path (each scaled by `scale`) to `set`.
 pub fn vpls_from_light_path(scene: &Scene, path: &[Vertex], scale: f32, group: u32, set: &mut VplSet) {
     for (i, v) in path.iter().enumerate() {
-        match v.kind {
-            VertexKind::Light => {
-                let inv_pdf = if v.pdf_fwd > 0.0 { scale / v.pdf_fwd } else { continue };
-                let (radiance, lobe, normal, flags) = match scene.lights.list[v.light as usize] {
-                    Light::Area { two_sided, .. } => {
-                        (v.beta * inv_pdf, None, v.ng, ON_LIGHT | if two_sided { TWO_SIDED } else { 0 })
-                    }
-                    Light::Point { intensity, .. } => (intensity * inv_pdf, None, Vec3::ZERO, ON_LIGHT),
-                    Light::Spot { intensity, frame, cos_inner, cos_outer, .. } => (
-                        intensity * inv_pdf,
-                        Some(VplLobe::Spot { axis: frame.n, cos_inner, cos_outer }),
-                        Vec3::ZERO,
-                        ON_LIGHT,
-                    ),
-                };
-                set.push(Vpl { position: v.p, normal, radiance, lobe, count: 1, flags, length: 0, group });
-            }
-            VertexKind::Surface => {
-                let Some(bsdf) = v.bsdf else { continue };
-                if bsdf.is_delta() {
-                    continue;
-                }
-                let beta = v.beta * scale;
-                let flat = (bsdf.frame.n - bsdf.ng).length_squared() < 1e-10;
-                let (radiance, lobe) = match bsdf.kind {
-                    crate::bsdf::BsdfKind::Lambert { albedo } if flat => {
-                        (beta * albedo * std::f32::consts::FRAC_1_PI, None)
-                    }
-                    _ => (beta, Some(VplLobe::Surface { bsdf, wo: v.wo })),
-                };
-                set.push(Vpl {
-                    position: v.p,
-                    normal: bsdf.frame.n,
-                    radiance,
-                    lobe,
-                    count: 1,
-                    flags: 0,
-                    length: i.min(255) as u8,
-                    group,
-                });
-            }
-            VertexKind::Camera => {}
+        if let Some(vpl) = vpl_of_vertex(scene, v, i, scale, group) {
+            set.push(vpl);
         }
     }
 }

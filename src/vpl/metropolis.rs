@@ -1,0 +1,498 @@
+//! Metropolis instant radiosity (Segovia, Iehl & Péroche 2007; papers/002, DESIGN §3): a Markov
+//! chain over complete paths with stationary density ∝ Y(f^(c)), whose VPL locations are then
+//! normalised so that each brings its share of the camera power.
+//!
+//! Per call of [`Mir::sample`]:
+//! 1. **P_c** (§5.1): N independent bidirectional samples of the kernel's own generator; their
+//!    mean weight estimates P_c, and the chain's first state is drawn among them ∝ weight
+//!    (removing start-up bias, Veach & Guibas 1997). When the camera has not jumped, the chain
+//!    continues from its last state instead (temporal coherence, DESIGN §3.6).
+//! 2. **Chain** (§5.2, §6.1): MH, or MTMH with p candidates and λ(u, v) = [g(u|v) g(v|u)]⁻¹, so
+//!    that w(u, v) = π(v) / g(v|u).
+//! 3. **Geographical VPLs** (§5.3): consecutive states with the same x_v add to its count k;
+//!    the chain runs until m distinct locations exist (or a documented step bound is hit);
+//!    n = number of states.
+//! 4. **Normalisation** (§5.4, §5.5): location i brings P_i = k_i P_c / n. Its camera response
+//!    P'_i is estimated with K camera probes (first surfaces of stratified camera rays) for the
+//!    VPL's own radiance L̂_i (the light sub-path's), and the VPL's radiance becomes
+//!    L̂_i · P_i / P'_i. Because 1/P̂' overestimates 1/P' (by ≈ CV²/K), a VPL seen by fewer than
+//!    `min_probe_hits` probes is measured with further probe batches, and the second-order term
+//!    σ̂²/P̂'³ is subtracted; what bias remains vanishes as probes grow (MIR is consistent). For a diffuse x_v this is the paper's (P_i / P'_i)·chroma_i with the unit
+//!    emitter tinted by the VPL's own colour, so colour survives the luminance-driven chain
+//!    exactly; for glossy x_v the VPL keeps its lobe.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::cdf::light_cdf;
+use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample};
+use super::set::{Vpl, VplSet};
+use super::transfer::{Receiver, contribution};
+use super::{SamplerStats, VplSampler};
+use crate::accel::Accel;
+use crate::color::luminance;
+use crate::sampling::{Distribution1D, IndependentSampler, Pcg32, Sampler};
+use crate::scene::{Camera, Scene};
+use crate::stats::RayStats;
+
+/// MH or MTMH.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chain {
+    /// Metropolis–Hastings.
+    Mh,
+    /// Multiple-try Metropolis–Hastings with this many candidates.
+    Mtmh(usize),
+}
+
+/// When a chain run stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopRule {
+    /// After a number of states n fixed before the run (m / the rate at which earlier runs moved
+    /// to a new location), so about m locations. n does not depend on the run it normalises,
+    /// which keeps the estimate unbiased (the default). A sampler's first run has no rate yet
+    /// and stops at m locations.
+    States,
+    /// As soon as m distinct locations exist (papers/002 §5.3). n then depends on the run: runs
+    /// that move fast stop early, which biases the image towards where the chain moves fast
+    /// (measured: several % in cornell's corners with MH); kept for comparison.
+    Locations,
+}
+
+/// Settings of the MIR samplers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MirSettings {
+    /// MH or MTMH (default 10 candidates).
+    pub chain: Chain,
+    /// Independent samples estimating P_c (N).
+    pub pc_samples: usize,
+    /// Camera probes per batch estimating each VPL's camera response (K).
+    pub probes: usize,
+    /// Probe batches available; a VPL seen by fewer than `min_probe_hits` probes of the first
+    /// batches is measured with the next batch, up to this many.
+    pub probe_batches: usize,
+    /// Probe hits a VPL's response estimate should rest on.
+    pub min_probe_hits: usize,
+    /// Longest light sub-path (vertices).
+    pub max_light: usize,
+    /// Choose lights with a light-source CDF (§7.4) instead of ∝ power.
+    pub light_cdf: bool,
+    /// The chain stops after `max_steps_per_vpl · m` states even if fewer than m locations
+    /// exist (a warning is reported).
+    pub max_steps_per_vpl: usize,
+    /// When a run stops.
+    pub stop: StopRule,
+}
+
+impl MirSettings {
+    /// MTMH with 10 candidates, N = 4096, K = 1024, light paths ≤ 16 vertices.
+    pub fn mtmh() -> Self {
+        MirSettings {
+            chain: Chain::Mtmh(10),
+            pc_samples: 4096,
+            probes: 1024,
+            probe_batches: 16,
+            min_probe_hits: 256,
+            max_light: 16,
+            light_cdf: false,
+            max_steps_per_vpl: 64,
+            stop: StopRule::States,
+        }
+    }
+
+    /// Plain MH with the same budgets.
+    pub fn mh() -> Self {
+        MirSettings { chain: Chain::Mh, ..Self::mtmh() }
+    }
+}
+
+/// What one chain run produced, beyond the VPL set.
+#[derive(Clone, Debug, Default)]
+pub struct ChainReport {
+    /// Estimated camera power P_c (sum over pixels of luminance).
+    pub pc: f64,
+    /// Chain states n.
+    pub states: u64,
+    /// Distinct locations m.
+    pub locations: usize,
+    /// Power P_i of each location, by the light its paths start from.
+    pub power_by_light: Vec<f64>,
+    /// The chain hit its step bound before m locations.
+    pub truncated: bool,
+    /// P_c is zero: no light reaches what the camera sees through the chain's domain.
+    pub dark: bool,
+}
+
+/// The MIR VPL sampler over a mutation kernel.
+pub struct Mir<K: MutationKernel> {
+    /// The mutation kernel.
+    pub kernel: K,
+    /// Settings.
+    pub settings: MirSettings,
+    state: Option<PathState>,
+    jumped: bool,
+    cdf: Option<(Camera, Distribution1D)>,
+    move_rate: f64,
+    runs: u64,
+    /// Report of the last call.
+    pub last: ChainReport,
+}
+
+/// MIR with the path-space bidirectional kernel.
+pub type MirBidir = Mir<Bidirectional>;
+/// MIR with the primary-sample-space kernel.
+pub type MirPss = Mir<PrimarySample>;
+
+impl<K: MutationKernel> Mir<K> {
+    /// A sampler with no chain yet.
+    pub fn new(kernel: K, settings: MirSettings) -> Self {
+        Mir {
+            kernel,
+            settings,
+            state: None,
+            jumped: true,
+            cdf: None,
+            move_rate: 0.5,
+            runs: 0,
+            last: ChainReport::default(),
+        }
+    }
+}
+
+const TAG_PC: u64 = 0x0050_435f_5341_4d50;
+const TAG_CHAIN: u64 = 0x0043_4841_494e;
+const TAG_PROBE: u64 = 0x0050_524f_4245;
+
+fn log_sum_exp(v: &[f64]) -> f64 {
+    let m = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if m == f64::NEG_INFINITY {
+        return m;
+    }
+    m + v.iter().map(|x| (x - m).exp()).sum::<f64>().ln()
+}
+
+/// Estimates P_c with `n` independent samples and returns it with one of them drawn ∝ weight.
+pub fn estimate_pc<K: MutationKernel>(
+    kernel: &K,
+    ctx: &Context,
+    n: usize,
+    seed: u64,
+    stats: &mut RayStats,
+) -> (f64, Option<PathState>) {
+    let results: Vec<(Option<PathState>, f64, RayStats)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Pcg32::from_words(&[seed, TAG_PC, i as u64]);
+            let mut st = RayStats::default();
+            let (x, w) = kernel.independent(ctx, &mut rng, &mut st);
+            (x, if w.is_finite() { w } else { 0.0 }, st)
+        })
+        .collect();
+    let total: f64 = results.iter().map(|r| r.1).sum();
+    for r in &results {
+        *stats += r.2;
+    }
+    if !(total > 0.0) {
+        return (0.0, None);
+    }
+    let mut rng = Pcg32::from_words(&[seed, TAG_PC, u64::MAX]);
+    let mut pick = rng.next_f64() * total;
+    let mut chosen = None;
+    for (x, w, _) in results {
+        if x.is_some() && w > 0.0 {
+            chosen = x;
+            if pick < w {
+                break;
+            }
+            pick -= w;
+        }
+    }
+    (total / n as f64, chosen)
+}
+
+/// One MH or MTMH transition from `x`; returns the next state and whether a move was accepted.
+pub fn step<K: MutationKernel>(
+    kernel: &K,
+    ctx: &Context,
+    chain: Chain,
+    x: &PathState,
+    rng: &mut Pcg32,
+    stats: &mut RayStats,
+) -> (PathState, bool) {
+    match chain {
+        Chain::Mh => {
+            let p = kernel.propose(ctx, x, rng, stats);
+            let Some(y) = p.state else { return (x.clone(), false) };
+            let log_a = y.log_target + kernel.log_g(ctx, x, &y) - x.log_target - p.log_g;
+            if log_a >= 0.0 || rng.next_f64().ln() < log_a { (y, true) } else { (x.clone(), false) }
+        }
+        Chain::Mtmh(p) => {
+            // Step 1–2: p candidates from g(·|x), one chosen ∝ w(x, y) = π(y) / g(y|x).
+            let ys: Vec<(PathState, f64)> = (0..p.max(1))
+                .filter_map(|_| {
+                    let pr = kernel.propose(ctx, x, rng, stats);
+                    pr.state.map(|y| {
+                        let lw = y.log_target - pr.log_g;
+                        (y, lw)
+                    })
+                })
+                .filter(|(_, lw)| lw.is_finite())
+                .collect();
+            if ys.is_empty() {
+                return (x.clone(), false);
+            }
+            let lws: Vec<f64> = ys.iter().map(|(_, lw)| *lw).collect();
+            let num = log_sum_exp(&lws);
+            // Choose j ∝ w, with weights normalised in log space (no overflow).
+            let mut pick = rng.next_f64();
+            let mut j = ys.len() - 1;
+            for (k, lw) in lws.iter().enumerate() {
+                let w = (lw - num).exp();
+                if pick < w {
+                    j = k;
+                    break;
+                }
+                pick -= w;
+            }
+            let yj = &ys[j].0;
+            // Step 3: p − 1 reference points from g(·|y_j), plus x itself.
+            let mut refs: Vec<f64> = (0..p.max(1) - 1)
+                .filter_map(|_| {
+                    let pr = kernel.propose(ctx, yj, rng, stats);
+                    pr.state.map(|z| z.log_target - pr.log_g)
+                })
+                .filter(|lw| lw.is_finite())
+                .collect();
+            refs.push(x.log_target - kernel.log_g(ctx, x, yj));
+            // Step 4–5: generalised ratio.
+            let den = log_sum_exp(&refs);
+            let log_r = num - den;
+            if log_r >= 0.0 || rng.next_f64().ln() < log_r { (yj.clone(), true) } else { (x.clone(), false) }
+        }
+    }
+}
+
+/// K camera probes: first surfaces of stratified camera rays (the §5.5 radiance pass). Returns
+/// the receivers and the number of rays traced (misses and specular hits count as zero response).
+fn probes(ctx: &Context, k: usize, seed: u64, stats: &mut RayStats) -> (Vec<Receiver>, usize) {
+    let side = (k as f64).sqrt().ceil().max(1.0) as usize;
+    let cam = ctx.camera;
+    let mut out = Vec::with_capacity(side * side);
+    for i in 0..side * side {
+        let mut s = IndependentSampler::for_stream(seed, TAG_PROBE, i as u64);
+        let (gx, gy) = ((i % side) as f32, (i / side) as f32);
+        let raster = glam::vec2(
+            (gx + s.next_1d()) / side as f32 * cam.width as f32,
+            (gy + s.next_1d()) / side as f32 * cam.height as f32,
+        );
+        if let Some(c) = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), stats) {
+            out.push(c.receiver);
+        }
+    }
+    (out, side * side)
+}
+
+impl<K: MutationKernel> Mir<K> {
+    fn light_choice(&mut self, scene: &Scene, accel: &Accel, camera: &Camera, stats: &mut RayStats) -> Distribution1D {
+        if !self.settings.light_cdf {
+            return scene.lights.distribution.clone();
+        }
+        if let Some((c, d)) = &self.cdf
+            && c == camera
+        {
+            return d.clone();
+        }
+        let d = light_cdf(scene, accel, camera, 1024, 32, self.settings.max_light, 0x0cdf, stats);
+        self.cdf = Some((camera.clone(), d.clone()));
+        d
+    }
+
+    /// Runs the chain and returns the normalised VPL set (see the module doc).
+    pub fn run(
+        &mut self,
+        scene: &Scene,
+        accel: &Accel,
+        camera: &Camera,
+        m: usize,
+        seed: u64,
+    ) -> (VplSet, SamplerStats) {
+        let t0 = Instant::now();
+        let mut rays = RayStats::default();
+        let dist = self.light_choice(scene, accel, camera, &mut rays);
+        let ctx = Context { scene, accel, camera, light_choice: &dist, max_light: self.settings.max_light.max(1) };
+        let mut report = ChainReport::default();
+        let (pc, fresh) = estimate_pc(&self.kernel, &ctx, self.settings.pc_samples.max(1), seed, &mut rays);
+        report.pc = pc;
+        // Continue the previous chain unless the camera jumped; re-evaluate it for this camera.
+        let carried = if self.jumped {
+            None
+        } else {
+            self.state.take().and_then(|x| self.kernel.reevaluate(&ctx, &x, &mut rays))
+        };
+        let Some(mut x) = carried.or(fresh) else {
+            report.dark = true;
+            self.state = None;
+            self.last = report;
+            let warnings = vec![format!(
+                "no light reaches what the camera sees through any path the chain samples (P_c = 0 from {} samples): the image shows only emitters seen directly",
+                self.settings.pc_samples
+            )];
+            return (VplSet::default(), SamplerStats { time: t0.elapsed(), rays, warnings, ..Default::default() });
+        };
+        self.jumped = false;
+        // The chain, grouping consecutive states by VPL location.
+        let mut rng = Pcg32::from_words(&[seed, TAG_CHAIN]);
+        let mut locations: Vec<(PathState, u64)> = Vec::with_capacity(m);
+        let (mut proposed, mut accepted) = (0u64, 0u64);
+        let max_states = (self.settings.max_steps_per_vpl.max(1) * m.max(1)) as u64;
+        // Fixed number of states (see `StopRule`): from the rate at which earlier runs moved to
+        // new locations, decided before this run starts.
+        // The first run of a sampler has no measured rate yet: it stops at m locations.
+        let stop = if self.runs == 0 { StopRule::Locations } else { self.settings.stop };
+        let fixed_states = match stop {
+            StopRule::States => {
+                ((m as f64 / self.move_rate.clamp(1e-3, 1.0)).ceil() as u64).clamp(m as u64, max_states)
+            }
+            StopRule::Locations => max_states,
+        };
+        let mut n = 0u64;
+        loop {
+            match locations.last_mut() {
+                Some((s, k)) if s.vpl.position == x.vpl.position && s.vpl.normal == x.vpl.normal => *k += 1,
+                _ => {
+                    if stop == StopRule::Locations && locations.len() == m {
+                        break;
+                    }
+                    locations.push((x.clone(), 1));
+                }
+            }
+            n += 1;
+            if n >= fixed_states {
+                report.truncated = n >= max_states && locations.len() < m;
+                break;
+            }
+            let (next, acc) = step(&self.kernel, &ctx, self.settings.chain, &x, &mut rng, &mut rays);
+            proposed += 1;
+            accepted += acc as u64;
+            x = next;
+        }
+        // (Locations rule: the last state opened location m + 1 and is not counted.)
+        let n_states: u64 = locations.iter().map(|l| l.1).sum();
+        let rate = locations.len() as f64 / n_states.max(1) as f64;
+        self.move_rate = if self.runs == 0 { rate } else { 0.8 * self.move_rate + 0.2 * rate };
+        self.runs += 1;
+        report.states = n_states;
+        report.locations = locations.len();
+        self.state = Some(x);
+        // Normalisation: each location's camera response from probe batches (module doc).
+        let batches = self.settings.probe_batches.max(1);
+        let probe_sets: Vec<(Vec<Receiver>, usize)> = (0..batches)
+            .map(|b| {
+                probes(
+                    &ctx,
+                    self.settings.probes.max(1),
+                    seed ^ (b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                    &mut rays,
+                )
+            })
+            .collect();
+        let npix = camera.pixel_count() as f64;
+        let nl = scene.lights.list.len();
+        report.power_by_light = vec![0.0; nl];
+        let min_hits = self.settings.min_probe_hits;
+        let scaled: Vec<(Option<Vpl>, RayStats)> = locations
+            .par_iter()
+            .enumerate()
+            .map(|(i, (s, k))| {
+                let mut st = RayStats::default();
+                let mut one = VplSet::default();
+                one.push(s.vpl);
+                // Probe batches until enough probes see the VPL (or all batches are used).
+                let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
+                for (receivers, count) in &probe_sets {
+                    for r in receivers {
+                        let y = luminance(contribution(scene, accel, &one, 0, r, f32::INFINITY, &mut st)) as f64;
+                        sum += y;
+                        sum2 += y * y;
+                        hits += (y > 0.0) as usize;
+                    }
+                    rays_used += count;
+                    if hits >= min_hits {
+                        break;
+                    }
+                }
+                let kk = rays_used.max(1) as f64;
+                let mean = sum / kk;
+                let response = mean * npix;
+                let p_i = *k as f64 * pc / n_states as f64;
+                if !(response > 0.0) || !p_i.is_finite() {
+                    return (None, st);
+                }
+                // 1/P' with its second-order bias removed: E[1/X] ≈ 1/μ + σ²/μ³ for the
+                // estimate X of μ, so 1/X − σ̂²/X³ (σ̂² the variance of the mean), never below ½/X.
+                let var_mean = ((sum2 / kk - mean * mean).max(0.0) / kk) * npix * npix;
+                let inv = (1.0 / response) * (1.0 - var_mean / (response * response)).max(0.5);
+                let mut v = s.vpl;
+                v.radiance *= (p_i * inv) as f32;
+                v.count = *k as u32;
+                v.group = i as u32;
+                (Some(v), st)
+            })
+            .collect();
+        let mut set = VplSet::default();
+        for ((v, st), (s, k)) in scaled.into_iter().zip(&locations) {
+            rays += st;
+            if let Some(v) = v {
+                set.push(v);
+                report.power_by_light[s.source_light() as usize] += *k as f64 * pc / n_states as f64;
+            }
+        }
+        set.groups = locations.len() as u32;
+        let mut warnings = Vec::new();
+        if report.truncated {
+            warnings.push(format!(
+                "the chain found only {} of {m} VPL locations within its bound of {} states ({} per VPL): light reaches the camera through very few paths",
+                report.locations,
+                max_states,
+                self.settings.max_steps_per_vpl
+            ));
+        }
+        let stats = SamplerStats {
+            time: t0.elapsed(),
+            candidates: n_states,
+            kept: set.len(),
+            paths: self.settings.pc_samples as u64,
+            accepted,
+            proposed,
+            rays,
+            warnings,
+        };
+        self.last = report;
+        (set, stats)
+    }
+}
+
+impl<K: MutationKernel> VplSampler for Mir<K> {
+    fn name(&self) -> &'static str {
+        match self.settings.chain {
+            Chain::Mh => "mh",
+            Chain::Mtmh(_) => "mtmh",
+        }
+    }
+
+    fn sample(&mut self, scene: &Scene, accel: &Accel, camera: &Camera, m: usize, seed: u64) -> (VplSet, SamplerStats) {
+        self.run(scene, accel, camera, m, seed)
+    }
+
+    fn reset(&mut self) {
+        self.state = None;
+        self.jumped = true;
+    }
+
+    fn camera_moved(&mut self, jumped: bool) {
+        if jumped {
+            self.jumped = true;
+            self.cdf = None;
+        }
+    }
+}
