@@ -10,7 +10,7 @@ use indicatif::ProgressBar;
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, discontinuity_filter};
-use crate::gather::{self, GBuffer, GatherEnergy, Interleave};
+use crate::gather::{self, GBuffer, GatherEnergy, Interleave, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -36,6 +36,8 @@ pub struct FrameSettings {
     /// unclamped VPL estimates with the path tracer on a domain where both have finite
     /// variance (see `offline::pt::PathFilter`).
     pub min_distance: f32,
+    /// Single rays or packets (and which shadow-ray grouping) in the G-buffer and gather.
+    pub tracing: Tracing,
 }
 
 impl FrameSettings {
@@ -49,6 +51,7 @@ impl FrameSettings {
             max_specular: 4,
             jitter: true,
             min_distance: 0.0,
+            tracing: Tracing::default(),
         }
     }
 
@@ -141,15 +144,32 @@ pub fn gather_frame(
     mut stats: FrameStats,
 ) -> Frame {
     let t = Instant::now();
-    let gbuf =
-        gather::gbuffer::trace(scene, accel, camera, seed, settings.jitter, settings.max_specular, &mut stats.rays);
+    let gbuf = gather::gbuffer::trace(
+        scene,
+        accel,
+        camera,
+        seed,
+        settings.jitter,
+        settings.max_specular,
+        settings.tracing,
+        &mut stats.rays,
+    );
     stats.primary_time = t.elapsed();
     let t = Instant::now();
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
     let g_max = g_bound(scene, settings.clamp);
-    let (gathered, energy) =
-        gather::gather(scene, accel, &gbuf, &vpls, &inter, g_max, settings.min_distance, &mut stats.rays);
+    let (gathered, energy) = gather::gather(
+        scene,
+        accel,
+        &gbuf,
+        &vpls,
+        &inter,
+        g_max,
+        settings.min_distance,
+        settings.tracing,
+        &mut stats.rays,
+    );
     stats.energy = energy;
     stats.shadow_time = t.elapsed();
     let t = Instant::now();

@@ -27,11 +27,13 @@ pub mod options;
 pub mod output;
 pub mod path;
 pub mod render;
+pub mod report;
 
 pub mod load;
 
 pub mod sampling;
 pub mod scene;
+pub mod simd;
 pub mod stats;
 pub mod view;
 pub mod vpl;

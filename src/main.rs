@@ -36,6 +36,12 @@ enum Command {
         /// Scene file or built-in scene name (default: the built-in Cornell box).
         scene: Option<String>,
     },
+    /// Error-vs-time report: relMSE against a cached path-traced reference after each time
+    /// budget, for every method; writes markdown and an SVG plot per scene.
+    Converge(ReportArgs),
+    /// VPL-sampler report (papers/002 §7.3–7.5): generation time, rejection rate and
+    /// single-frame relMSE of every strategy, same gather and clamp for all.
+    Samplers(ReportArgs),
     /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), mean bias; B is the reference.
     Diff {
         /// Test image.
@@ -45,6 +51,38 @@ enum Command {
     },
 }
 
+/// Flags of the report subcommands.
+#[derive(clap::Args, Debug)]
+struct ReportArgs {
+    /// Scenes (files or built-in names).
+    #[arg(long, value_delimiter = ',', default_value = "cornell,ajar-door,left-right,direct-indirect,light-box")]
+    scenes: Vec<String>,
+    /// Methods: pt, bdpt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh).
+    #[arg(long, value_delimiter = ',', default_value = "pt,bdpt,sir,bir,mtmh")]
+    methods: Vec<String>,
+    /// Time budgets in seconds (converge).
+    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2,4")]
+    times: Vec<f64>,
+    /// VPL counts (samplers).
+    #[arg(long, value_delimiter = ',', default_value = "256,1024")]
+    vpls: Vec<usize>,
+    /// Frames averaged per sampler row (samplers).
+    #[arg(long, default_value_t = 4)]
+    frames: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 256)]
+    width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 192)]
+    height: u32,
+    /// Samples per pixel of the cached path-traced references (target/reference/).
+    #[arg(long, default_value_t = 4096)]
+    reference_spp: u32,
+    /// Write the markdown here (and SVG plots beside it); default: print only.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -52,6 +90,8 @@ fn main() -> ExitCode {
         Command::View(args) => mirage::view::run(&args).map_err(|e| anyhow::anyhow!(e)),
         Command::Info { scene } => cmd_info(scene.as_deref()),
         Command::Diff { a, b } => cmd_diff(&a, &b),
+        Command::Converge(args) => cmd_report(&args, false),
+        Command::Samplers(args) => cmd_report(&args, true),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -248,5 +288,99 @@ fn cmd_diff(a: &Path, b: &Path) -> Result<()> {
     }
     let e = ia.errors(&ib);
     println!("mse {:.6e}  relmse {:.6e}  mean_bias {:+.4} %", e.mse, e.rel_mse, 100.0 * e.mean_bias);
+    Ok(())
+}
+
+fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
+    use mirage::frame::FrameSettings;
+    use mirage::report::{self, Method};
+    let methods: Vec<Method> =
+        args.methods.iter().map(|m| Method::parse(m)).collect::<Result<_, _>>().map_err(|e| anyhow::anyhow!(e))?;
+    if args.times.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
+        bail!("--times must be positive numbers of seconds");
+    }
+    let camera = CameraSettings { width: Some(args.width), height: Some(args.height), ..Default::default() };
+    let frame_settings = FrameSettings::interactive();
+    let mut md = String::new();
+    let mut svgs = Vec::new();
+    let machine = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|c| {
+            c.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_default();
+    md += &format!(
+        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {}, discontinuity buffer on.\n\n",
+        rayon::current_num_threads(),
+        args.width,
+        args.height,
+        args.reference_spp,
+        frame_settings.vpls,
+        frame_settings.interleave.0,
+        frame_settings.interleave.1,
+        frame_settings.clamp
+    );
+    let mut conv_rows = Vec::new();
+    let mut sampler_rows = Vec::new();
+    for name in &args.scenes {
+        let source = SceneSource::from_arg(Some(name));
+        let scene = render::load_scene(&source, &camera)?;
+        let accel = Accel::build(&scene.mesh);
+        eprintln!("{name}: reference ({} spp, cached)…", args.reference_spp);
+        let reference =
+            report::reference(&scene, &accel, &source.name(), args.reference_spp, &report::reference_dir())?;
+        if samplers {
+            for &m in &args.vpls {
+                for method in methods.iter().filter(|m| matches!(m, Method::Vpl { .. })) {
+                    eprintln!("{name}: {} with {m} VPLs", method.label());
+                    sampler_rows.push(report::sampler_row(
+                        &scene,
+                        &accel,
+                        &source.name(),
+                        method,
+                        m,
+                        args.frames,
+                        &reference,
+                        &frame_settings,
+                    ));
+                }
+            }
+        } else {
+            let rows = report::converge(
+                &scene,
+                &accel,
+                &source.name(),
+                &methods,
+                &args.times,
+                &reference,
+                &frame_settings,
+                &|m| eprintln!("{m}"),
+            );
+            svgs.push((source.name(), report::converge_svg(&rows, &source.name())));
+            conv_rows.extend(rows);
+        }
+    }
+    if samplers {
+        md += &report::sampler_markdown(&sampler_rows);
+    } else {
+        md += "relMSE against the reference after each time budget (passes in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n";
+        md += &report::converge_markdown(&conv_rows, &args.times);
+    }
+    println!("{md}");
+    if let Some(out) = &args.output {
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)?;
+        }
+        std::fs::write(out, &md).with_context(|| format!("{}: cannot write report", out.display()))?;
+        for (name, svg) in svgs {
+            let p = out.with_file_name(format!(
+                "{}-{name}.svg",
+                out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+            ));
+            std::fs::write(&p, svg).with_context(|| format!("{}: cannot write plot", p.display()))?;
+        }
+    }
     Ok(())
 }

@@ -42,6 +42,28 @@ pub enum KernelArg {
     Pss,
 }
 
+/// How the gather traces rays (`--rays`); the image is the same, only speed differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum RaysArg {
+    /// One ray at a time.
+    Single,
+    /// 8-wide packets; shadow packets share a VPL (pixels of a row gathering the same subset).
+    #[default]
+    SharedEnd,
+    /// 8-wide packets; shadow packets share a pixel (its VPL subset).
+    SharedOrigin,
+}
+
+impl From<RaysArg> for crate::gather::Tracing {
+    fn from(r: RaysArg) -> Self {
+        match r {
+            RaysArg::Single => Self::Single,
+            RaysArg::SharedEnd => Self::SharedEnd,
+            RaysArg::SharedOrigin => Self::SharedOrigin,
+        }
+    }
+}
+
 /// Settings of the samplers beyond their kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SamplerConfig {
@@ -199,7 +221,8 @@ pub struct RenderArgs {
     /// Rendering mode.
     #[arg(long, value_enum, default_value_t = Mode::Mir)]
     pub mode: Mode,
-    /// Samples per pixel (default 64 when no --time is given).
+    /// Samples per pixel (pt, bdpt) or independent VPL sets accumulated (ir, mir); default 64
+    /// when no --time is given.
     #[arg(long, conflicts_with = "time")]
     pub spp: Option<u32>,
     /// Render progressively for this many seconds instead of a fixed sample count.
@@ -226,19 +249,23 @@ pub struct RenderArgs {
     /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
     #[arg(long)]
     pub light_cdf: bool,
-    /// VPLs per frame (ir mode).
+    /// VPLs per frame (ir, mir).
     #[arg(long, default_value_t = 256)]
     pub vpls: usize,
-    /// Interleaved-sampling tile "NxM" (ir mode); 1x1 disables interleaving.
+    /// Interleaved-sampling tile "NxM" (ir, mir); 1x1 disables interleaving.
     #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
     pub interleave: (u32, u32),
     /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
     /// (unbiased, noisier near corners).
     #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
     pub clamp: f32,
-    /// Do not apply the discontinuity buffer after the gather (ir mode).
+    /// Do not apply the discontinuity buffer after the gather (ir, mir).
     #[arg(long)]
     pub no_filter: bool,
+    /// Ray tracing of the gather (ir, mir): 8-wide packets with shadow rays grouped by shared
+    /// VPL (default) or by shared pixel, or single rays. Same image; see benches/gather.rs.
+    #[arg(long, value_enum, default_value_t = RaysArg::SharedEnd)]
+    pub rays: RaysArg,
     /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
     #[arg(long, default_value_t = 20.0)]
     pub filter_angle: f32,
@@ -406,6 +433,7 @@ impl RenderArgs {
                 max_specular: 8,
                 jitter: true,
                 min_distance: 0.0,
+                tracing: self.rays.into(),
             },
         })
     }

@@ -12,7 +12,6 @@ use mirage::filter::{DiscontinuitySettings, discontinuity_filter};
 use mirage::frame::{self, FrameSettings};
 use mirage::load::SceneDesc;
 use mirage::load::builtin::{self, Builder, cuboid, quad};
-use mirage::offline::pt::PathFilter;
 use mirage::offline::{self, Budget, OfflineSettings};
 use mirage::options::VplSamplerArg;
 use mirage::scene::{CameraSettings, Scene};

@@ -1,9 +1,19 @@
 //! ③ The acceleration structure: the only importer of obvhs.
 //!
-//! [`Accel::build`] builds obvhs's compressed 8-wide BVH (CWBVH, Ylitie et al. 2017) over the
-//! scene's triangles and keeps a copy of the triangles in BVH leaf order, intersected with our
-//! watertight test ([`triangle`]). Queries: closest hit and occlusion for single rays
-//! ([`single`]). Debug builds validate the tree after building.
+//! [`Accel::build`] has obvhs build a BVH2 over the scene's triangles (PLOC with parallel
+//! reinsertion, the same builder as its `build_cwbvh_from_tris`) and converts it twice:
+//!
+//! - into **our flattened 8-wide BVH** ([`wide`]): full-precision child boxes in SoA form and
+//!   leaves of up to four triangles in SoA blocks. All queries use it: single rays
+//!   ([`single`]: 8 children per SIMD box test, 4 triangles per SIMD triangle test) and packets
+//!   of 4 or 8 rays ([`packet`]: one child or triangle against all lanes). Packet builders for
+//!   the gather's patterns are in [`rays`].
+//! - into **obvhs's compressed CWBVH** (Ylitie et al. 2017), kept as the baseline the
+//!   benchmarks compare with ([`Accel::intersect_obvhs`], [`Accel::occluded_obvhs`]).
+//!
+//! Triangles are intersected with our watertight test ([`triangle`]) in every path, in the
+//! same arithmetic, so single rays, packet lanes and the obvhs path report the same triangle
+//! and t (ties at equal t go to the smaller scene index). Debug builds validate both trees.
 //!
 //! **Canonical frame.** obvhs's CWBVH node test clips every ray at an absolute t of 1e-4
 //! (`cwbvh::node::EPSILON`), which at small scene scales skips nearby geometry (light leaks in
@@ -11,28 +21,42 @@
 //! therefore built over the triangles mapped into a canonical frame, `x' = (x − centre)·k` with
 //! k making the scene's bounding-box diagonal 2²⁰, and rays are mapped with unit directions.
 //! The clip distance is then ~1e-10 of the scene size, far below the ray offsets below, and
-//! the structure behaves identically at every scene scale.
+//! the structure behaves identically at every scene scale. Our own traversals have no clip
+//! (rays start at t = 0) but share the frame.
 //!
 //! **Offset policy for rays leaving a surface** (the same for single rays and packets): the
 //! origin is moved off the surface along the geometric normal, towards the side the ray leaves
 //! on, by [`ray_offset`] = 2⁻¹⁸ × the largest absolute coordinate of the triangle and the point
 //! (a few hundred ulps of the position, so the offset scales with the scene and is far above the
 //! rounding error of the hit point), and rays start at t = 0. Shadow rays between two surface
-//! points offset both ends and stop at the offset end point, so the receiving surface itself is
-//! never reported as an occluder.
+//! points offset both ends and stop at the offset end point ([`shadow_segment`],
+//! [`SHADOW_T_MAX`]), so the receiving surface itself is never reported as an occluder.
+//!
+//! **Robustness.** Directions with zero components get infinite reciprocals and the slab
+//! tests treat boxes as closed (see [`single`]); box far distances are scaled up by
+//! [`single::ROBUST`] and culling has an absolute margin so that rounding never culls a box
+//! holding a hit; rays with zero or non-finite direction, or
+//! t_max ≤ 0 or NaN, hit nothing (inactive packet lanes); nothing panics on NaN input.
 
+pub mod packet;
+pub mod rays;
 pub mod single;
 pub mod triangle;
+pub mod wide;
 
 use glam::{Vec3, Vec3A};
 use obvhs::BvhBuildParams;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
+use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::ploc::PlocBuilder;
 use obvhs::triangle::Triangle;
 
 use crate::scene::{Mesh, SurfacePoint};
 
+pub use packet::PacketHits;
 pub use triangle::{ShearedRay, TriHit, intersect as intersect_triangle};
+pub use wide::WideBvh;
 
 /// A closest-hit result.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -67,10 +91,13 @@ impl CanonicalFrame {
     }
 }
 
-/// The BVH with its triangles in leaf order.
+/// The BVHs with their triangles in leaf order.
 pub struct Accel {
     /// World → canonical frame map.
     pub frame: CanonicalFrame,
+    /// Our 8-wide BVH (all queries).
+    pub(crate) wide: WideBvh<8>,
+    /// obvhs's CWBVH (the baseline).
     pub(crate) bvh: CwBvh,
     /// Triangle corners in BVH primitive order.
     pub(crate) tris: Vec<[Vec3A; 3]>,
@@ -80,7 +107,12 @@ pub struct Accel {
 
 impl std::fmt::Debug for Accel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Accel").field("triangles", &self.tris.len()).field("nodes", &self.bvh.nodes.len()).finish()
+        f.debug_struct("Accel")
+            .field("triangles", &self.tris.len())
+            .field("wide_nodes", &self.wide.nodes.len())
+            .field("wide_depth", &self.wide.depth)
+            .field("cwbvh_nodes", &self.bvh.nodes.len())
+            .finish()
     }
 }
 
@@ -95,20 +127,27 @@ impl Accel {
         let diag = (hi - lo).length();
         let scale = if diag > 0.0 && diag.is_finite() { CANONICAL_DIAGONAL / diag } else { 1.0 };
         let frame = CanonicalFrame { center: 0.5 * (lo + hi), scale };
-        let tris: Vec<Triangle> = (0..mesh.len() as u32)
-            .map(|t| {
-                let [a, b, c] = mesh.corners(t).map(|p| frame.point(p));
-                Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
-            })
-            .collect();
-        let mut build_time = std::time::Duration::ZERO;
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut build_time);
+        let corners: Vec<[Vec3; 3]> = (0..mesh.len() as u32).map(|t| mesh.corners(t).map(|p| frame.point(p))).collect();
+        let tris: Vec<Triangle> =
+            corners.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
+        // obvhs's `build_cwbvh_from_tris` (medium preset, no pre-splits), keeping the BVH2.
+        let params = BvhBuildParams::medium_build();
+        let mut bvh2 = PlocBuilder::with_capacity(tris.len()).build(
+            params.ploc_search_distance,
+            &tris,
+            (0..tris.len() as u32).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+        let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+        let wide = WideBvh::from_bvh2(&bvh2, &corners);
         let prim_to_tri: Vec<u32> = bvh.primitive_indices.clone();
         let ordered = prim_to_tri.iter().map(|&i| {
             let t = &tris[i as usize];
             [t.v0, t.v1, t.v2]
         });
-        let accel = Accel { frame, tris: ordered.collect(), prim_to_tri, bvh };
+        let accel = Accel { frame, wide, tris: ordered.collect(), prim_to_tri, bvh };
         debug_assert!(accel.validate(mesh));
         accel
     }
@@ -118,8 +157,25 @@ impl Accel {
         self.tris.len()
     }
 
-    /// Checks that every scene triangle appears exactly once and its copy matches the mesh.
+    /// Our wide BVH (for statistics and benchmarks).
+    pub fn wide(&self) -> &WideBvh<8> {
+        &self.wide
+    }
+
+    /// Checks both trees: every scene triangle appears exactly once in each and its copies
+    /// match the mesh; our tree's boxes contain their contents.
     pub fn validate(&self, mesh: &Mesh) -> bool {
+        if !self.wide.validate(mesh.len()) {
+            return false;
+        }
+        for block in &self.wide.blocks {
+            for lane in 0..block.len() {
+                let c = mesh.corners(block.id[lane]).map(|p| self.frame.point(p));
+                if (0..3).any(|k| Vec3::from(block.corner(lane, k)) != c[k]) {
+                    return false;
+                }
+            }
+        }
         let mut seen = vec![false; mesh.len()];
         for (prim, &tri) in self.prim_to_tri.iter().enumerate() {
             let t = tri as usize;
@@ -149,4 +205,17 @@ pub fn ray_offset(p: Vec3, corners: &[Vec3; 3]) -> f32 {
 pub fn offset_origin(sp: &SurfacePoint, corners: &[Vec3; 3], w: Vec3) -> Vec3 {
     let d = ray_offset(sp.p, corners);
     if sp.ng.dot(w) >= 0.0 { sp.p + sp.ng * d } else { sp.p - sp.ng * d }
+}
+
+/// Fraction of a shadow segment that is tested: the far end's own surface is not an occluder.
+pub const SHADOW_T_MAX: f32 = 1.0 - 1e-4;
+
+/// The shadow segment between surface points `a` and `b`, both ends offset off their surfaces
+/// towards each other: returns (origin, end); trace `origin + t·(end − origin)` for t in
+/// (0, [`SHADOW_T_MAX`]).
+#[inline]
+pub fn shadow_segment(scene: &crate::scene::Scene, a: &SurfacePoint, b: &SurfacePoint) -> (Vec3, Vec3) {
+    let oa = offset_origin(a, &scene.mesh.corners(a.tri), b.p - a.p);
+    let ob = offset_origin(b, &scene.mesh.corners(b.tri), a.p - b.p);
+    (oa, ob)
 }

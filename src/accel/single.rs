@@ -1,37 +1,102 @@
-//! Single-ray queries through obvhs's CWBVH traversal, with our watertight triangle test.
+//! Single-ray queries. [`Accel::intersect`] / [`Accel::occluded`] traverse our 8-wide BVH
+//! ([`super::wide`]) testing all 8 child boxes with one SIMD operation per plane and the (up
+//! to 4) triangles of a leaf with one 4-lane watertight test; [`Accel::intersect_obvhs`] /
+//! [`Accel::occluded_obvhs`] traverse obvhs's CWBVH (the baseline), with the same triangle test.
+//!
+//! Box test: Williams et al.'s slab test (2005) with the near plane chosen by the direction's
+//! sign and distances `(plane − o)·(1/d)` with IEEE reciprocals. A zero direction component
+//! gives ±∞ (origin off the plane) or NaN (origin exactly on it); slab distances are folded
+//! in as `slab.vmax(acc)` / `slab.vmin(acc)`, which ignore a NaN slab, so a ray lying in a
+//! box face counts as inside that slab (closed boxes). The far distance is scaled by [`ROBUST`]
+//! so that rounding never culls a box the ray touches (Ize 2013, "Robust BVH Ray Traversal").
+//! Hit children are pushed and sorted by entry distance (nearest on top).
+//!
+//! Culling against the closest hit so far uses [`cull_distance`]: a relative *and* an absolute
+//! margin, because the watertight test's t of a large triangle hit close to the origin carries
+//! an absolute error of a few ulps of the scene's coordinates. Without the margin, a box
+//! holding a hit a hair closer than the current one could be culled, and the answer would
+//! depend on the traversal order (single rays and packets disagreed on 0.6 % of grazing rays).
+//!
+//! Ties: when two triangles report the same t the smaller scene index wins, in every traversal,
+//! so the result does not depend on traversal order (packets and single rays agree).
 
 use glam::Vec3;
 use obvhs::ray::{Ray as BvhRay, RayHit};
 
-use super::triangle::{ShearedRay, intersect};
+use super::triangle::{ShearedRay, intersect, intersect_block};
+use super::wide::{EMPTY, LEAF_BIT, WideBvh, leaf_parts};
 use super::{Accel, Hit};
 use crate::scene::{Scene, SurfacePoint};
+use crate::simd::{F4, F8, Lanes};
 
-/// A world-space ray mapped to the canonical frame: origin, unit direction, t_max, and the
-/// factor converting canonical distances back to the caller's ray parameter.
-#[inline]
-fn canonical(accel: &Accel, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(Vec3, Vec3, f32, f32)> {
-    let len = dir.length();
-    if !(len > 0.0) || !(t_max > 0.0) || !len.is_finite() {
-        return None;
-    }
-    let to_param = 1.0 / (len * accel.frame.scale);
-    let t_max_c = if t_max.is_finite() { t_max / to_param } else { f32::INFINITY };
-    Some((accel.frame.point(origin), dir / len, t_max_c, to_param))
+/// Factor on far distances that makes box tests conservative: 1 + 2⁻²⁰, above Ize's 1 + 2γ₃
+/// (≈ 1 + 3.6·10⁻⁷), with room for the rounding of the triangle test's t.
+pub const ROBUST: f32 = 1.0 + 1.0 / 1_048_576.0;
+
+/// Absolute culling margin in canonical units: 16 ulps of the largest canonical coordinate
+/// (2¹⁹), 10⁻⁶ of the scene's diagonal.
+pub const CULL_SLACK: f32 = 1.0;
+
+/// Boxes entered beyond this distance cannot hold a hit closer than `best_t`.
+#[inline(always)]
+pub fn cull_distance(best_t: f32) -> f32 {
+    best_t * ROBUST + CULL_SLACK
+}
+
+/// A world-space ray in the canonical frame: origin, unit direction, t_max, and the factor
+/// converting canonical distances back to the caller's ray parameter.
+#[derive(Clone, Copy, Debug)]
+pub struct CanonicalRay {
+    /// Origin (canonical frame).
+    pub origin: Vec3,
+    /// Unit direction.
+    pub dir: Vec3,
+    /// End of the interval (canonical units).
+    pub t_max: f32,
+    /// Canonical distance → caller's ray parameter.
+    pub to_param: f32,
 }
 
 impl Accel {
+    /// Maps a world ray to the canonical frame; `None` for rays that cannot hit anything
+    /// (zero or non-finite direction, non-finite origin, t_max ≤ 0 or NaN).
+    #[inline]
+    pub fn canonical(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<CanonicalRay> {
+        let len = dir.length();
+        if !(len > 0.0) || !(t_max > 0.0) || !len.is_finite() || !origin.is_finite() {
+            return None;
+        }
+        let to_param = 1.0 / (len * self.frame.scale);
+        let t_max = if t_max.is_finite() { t_max / to_param } else { f32::INFINITY };
+        Some(CanonicalRay { origin: self.frame.point(origin), dir: dir / len, t_max, to_param })
+    }
+
     /// The closest hit along `origin + t·dir` for t in (0, t_max] (world space; `dir` need not
     /// be normalised, `t` is in units of its length).
     #[inline]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
-        let (origin, dir, t_max, to_param) = canonical(self, origin, dir, t_max)?;
-        let sheared = ShearedRay::new(origin, dir);
-        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, t_max);
+        let ray = self.canonical(origin, dir, t_max)?;
+        let (t, tri, b1, b2) = closest(&self.wide, &ray)?;
+        Some(Hit { t: t * ray.to_param, tri, b1, b2 })
+    }
+
+    /// True when something blocks `origin + t·dir` for t in (0, t_max).
+    #[inline]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        self.canonical(origin, dir, t_max).is_some_and(|ray| occluded(&self.wide, &ray))
+    }
+
+    /// [`Accel::intersect`] through obvhs's own CWBVH traversal (the benchmark baseline).
+    /// Identical results except for equal-t ties and geometry within obvhs's node clip
+    /// distance (10⁻¹⁰ of the scene size) of the origin.
+    pub fn intersect_obvhs(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
+        let ray = self.canonical(origin, dir, t_max)?;
+        let sheared = ShearedRay::new(ray.origin, ray.dir);
+        let bvh_ray = BvhRay::new(ray.origin.into(), ray.dir.into(), 0.0, ray.t_max);
         let mut hit = RayHit::none();
         let mut best = (0.0f32, 0.0f32);
-        let mut best_t = t_max;
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, prim| {
+        let mut best_t = ray.t_max;
+        let found = self.bvh.ray_traverse(bvh_ray, &mut hit, |r, prim| {
             let [p0, p1, p2] = self.tris[prim];
             match intersect(&sheared, p0, p1, p2, 0.0, r.tmax) {
                 Some(h) if h.t < best_t => {
@@ -46,19 +111,18 @@ impl Accel {
         if !found {
             return None;
         }
-        Some(Hit { t: hit.t * to_param, tri: self.prim_to_tri[hit.primitive_id as usize], b1: best.0, b2: best.1 })
+        Some(Hit { t: hit.t * ray.to_param, tri: self.prim_to_tri[hit.primitive_id as usize], b1: best.0, b2: best.1 })
     }
 
-    /// True when something blocks `origin + t·dir` for t in (0, t_max).
-    #[inline]
-    pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        let Some((origin, dir, t_max, _)) = canonical(self, origin, dir, t_max) else { return false };
-        let sheared = ShearedRay::new(origin, dir);
-        let ray = BvhRay::new(origin.into(), dir.into(), 0.0, t_max);
-        !self.bvh.ray_traverse_miss(ray, |_, prim| {
+    /// [`Accel::occluded`] through obvhs's own CWBVH traversal (the benchmark baseline).
+    pub fn occluded_obvhs(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let Some(ray) = self.canonical(origin, dir, t_max) else { return false };
+        let sheared = ShearedRay::new(ray.origin, ray.dir);
+        let bvh_ray = BvhRay::new(ray.origin.into(), ray.dir.into(), 0.0, ray.t_max);
+        !self.bvh.ray_traverse_miss(bvh_ray, |_, prim| {
             let [p0, p1, p2] = self.tris[prim];
-            match intersect(&sheared, p0, p1, p2, 0.0, t_max) {
-                Some(h) if h.t < t_max => h.t,
+            match intersect(&sheared, p0, p1, p2, 0.0, ray.t_max) {
+                Some(h) if h.t < ray.t_max => h.t,
                 _ => f32::INFINITY,
             }
         })
@@ -66,10 +130,242 @@ impl Accel {
 
     /// Visibility between two surface points (offsetting both ends, see the module doc).
     pub fn visible(&self, scene: &Scene, a: &SurfacePoint, b: &SurfacePoint) -> bool {
-        let ca = scene.mesh.corners(a.tri);
-        let cb = scene.mesh.corners(b.tri);
-        let oa = super::offset_origin(a, &ca, b.p - a.p);
-        let ob = super::offset_origin(b, &cb, a.p - b.p);
-        !self.occluded(oa, ob - oa, 1.0 - 1e-4)
+        let (oa, ob) = super::shadow_segment(scene, a, b);
+        !self.occluded(oa, ob - oa, super::SHADOW_T_MAX)
+    }
+}
+
+/// A traversal stack of (reference, entry distance).
+trait Stack {
+    fn push(&mut self, r: u32, t: f32);
+    fn pop(&mut self) -> Option<(u32, f32)>;
+    /// Sorts the top `n` entries so that the nearest is on top.
+    fn sort_top(&mut self, n: usize);
+}
+
+/// A stack in a fixed array (no allocation), for trees whose [`WideBvh::stack_need`] fits.
+struct ArrayStack<const N: usize> {
+    items: [(u32, f32); N],
+    len: usize,
+}
+
+impl<const N: usize> ArrayStack<N> {
+    #[inline(always)]
+    fn new() -> Self {
+        ArrayStack { items: [(0, 0.0); N], len: 0 }
+    }
+}
+
+#[inline(always)]
+fn sort_desc(items: &mut [(u32, f32)]) {
+    for i in 1..items.len() {
+        let mut j = i;
+        while j > 0 && items[j - 1].1 < items[j].1 {
+            items.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+}
+
+impl<const N: usize> Stack for ArrayStack<N> {
+    #[inline(always)]
+    fn push(&mut self, r: u32, t: f32) {
+        self.items[self.len] = (r, t);
+        self.len += 1;
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.items[self.len])
+    }
+    #[inline(always)]
+    fn sort_top(&mut self, n: usize) {
+        sort_desc(&mut self.items[self.len - n..self.len]);
+    }
+}
+
+impl Stack for Vec<(u32, f32)> {
+    #[inline(always)]
+    fn push(&mut self, r: u32, t: f32) {
+        Vec::push(self, (r, t));
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        Vec::pop(self)
+    }
+    #[inline(always)]
+    fn sort_top(&mut self, n: usize) {
+        let len = self.len();
+        sort_desc(&mut self[len - n..]);
+    }
+}
+
+/// Capacity of the array stack of single-ray traversals.
+const STACK: usize = 128;
+
+/// The per-ray constants of the 8-wide box test.
+struct BoxRay {
+    o: [F8; 3],
+    rdir: [F8; 3],
+    /// `bounds` row of the near plane per axis (the far plane is the next row).
+    near: [usize; 3],
+}
+
+impl BoxRay {
+    #[inline(always)]
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        let r = [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z];
+        BoxRay {
+            o: [F8::splat(origin.x), F8::splat(origin.y), F8::splat(origin.z)],
+            rdir: r.map(F8::splat),
+            near: [0, 1, 2].map(|a| 2 * a + (r[a] < 0.0) as usize),
+        }
+    }
+
+    /// Entry distances of the 8 children and the mask of those entered at or before `t_cull`
+    /// (and not behind the origin).
+    #[inline(always)]
+    fn test(&self, bounds: &[[f32; 8]; 6], t_cull: f32) -> (F8, u32) {
+        let slab = |axis: usize, row: usize| (F8::from_array(bounds[row]) - self.o[axis]) * self.rdir[axis];
+        let [nx, ny, nz] = self.near;
+        // Slab first: a NaN slab (ray in the plane) is ignored.
+        let t_near = slab(0, nx).vmax(slab(1, ny).vmax(slab(2, nz).vmax(F8::splat(0.0))));
+        let t_far = slab(0, nx ^ 1).vmin(slab(1, ny ^ 1).vmin(slab(2, nz ^ 1).vmin(F8::splat(f32::INFINITY))));
+        (t_near, t_near.le((t_far * F8::splat(ROBUST)).vmin(F8::splat(t_cull))).bitmask())
+    }
+}
+
+/// Scalar twin of one lane of the box tests (single-ray and packet): the entry distance when
+/// the ray meets the closed box [lo, hi] at or before `t_cull`.
+pub fn box_hit_scalar(lo: Vec3, hi: Vec3, origin: Vec3, dir: Vec3, t_cull: f32) -> Option<f32> {
+    let (mut t_near, mut t_far) = (0.0f32, f32::INFINITY);
+    for axis in 0..3 {
+        let r = 1.0 / dir[axis];
+        let (n, f) = if r < 0.0 { (hi[axis], lo[axis]) } else { (lo[axis], hi[axis]) };
+        // f32::max / min ignore NaN (ray in a face plane), as the SIMD code does.
+        t_near = t_near.max((n - origin[axis]) * r);
+        t_far = t_far.min((f - origin[axis]) * r);
+    }
+    (t_near <= (t_far * ROBUST).min(t_cull)).then_some(t_near)
+}
+
+/// Pushes the children of `mask` and returns the nearest to continue with (None: no child).
+#[inline(always)]
+fn descend<S: Stack>(stack: &mut S, child: &[u32; 8], t_near: F8, mask: u32, sort: bool) -> Option<u32> {
+    match mask.count_ones() {
+        0 => None,
+        1 => Some(child[mask.trailing_zeros() as usize]),
+        n => {
+            let t = t_near.to_array();
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                stack.push(child[i], t[i]);
+            }
+            if sort {
+                stack.sort_top(n as usize);
+            }
+            stack.pop().map(|(r, _)| r)
+        }
+    }
+}
+
+/// Closest hit in the canonical frame: (t, scene triangle, b1, b2).
+#[inline]
+pub(crate) fn closest(bvh: &WideBvh<8>, ray: &CanonicalRay) -> Option<(f32, u32, f32, f32)> {
+    if bvh.stack_need() <= STACK {
+        closest_with(bvh, ray, &mut ArrayStack::<STACK>::new())
+    } else {
+        closest_with(bvh, ray, &mut Vec::with_capacity(bvh.stack_need()))
+    }
+}
+
+#[inline(always)]
+fn closest_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, stack: &mut S) -> Option<(f32, u32, f32, f32)> {
+    let sheared = ShearedRay::new(ray.origin, ray.dir);
+    let box_ray = BoxRay::new(ray.origin, ray.dir);
+    let mut best_t = ray.t_max;
+    let mut best = (EMPTY, 0.0f32, 0.0f32);
+    let mut cur = Some(bvh.root);
+    loop {
+        while let Some(r) = cur {
+            if r & LEAF_BIT == 0 {
+                let node = &bvh.nodes[r as usize];
+                let (t_near, mask) = box_ray.test(&node.bounds, cull_distance(best_t));
+                cur = descend(stack, &node.child, t_near, mask, true);
+            } else {
+                let (b, count) = leaf_parts(r);
+                let block = &bvh.blocks[b];
+                let h = intersect_block(&sheared, block, count, best_t);
+                let mut m = h.mask.bitmask();
+                if m != 0 {
+                    let (t, b1, b2) = (h.t.to_array(), h.b1.to_array(), h.b2.to_array());
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let id = block.id[i];
+                        if t[i] < best_t || (t[i] == best_t && id < best.0) {
+                            best_t = t[i];
+                            best = (id, b1[i], b2[i]);
+                        }
+                    }
+                }
+                cur = None;
+            }
+        }
+        // Pop the next entry the closest hit has not passed.
+        loop {
+            match stack.pop() {
+                None => return (best.0 != EMPTY).then_some((best_t, best.0, best.1, best.2)),
+                Some((r, t)) if t <= cull_distance(best_t) => {
+                    cur = Some(r);
+                    break;
+                }
+                Some(_) => {}
+            }
+        }
+    }
+}
+
+/// Any hit in (0, t_max) in the canonical frame.
+#[inline]
+pub(crate) fn occluded(bvh: &WideBvh<8>, ray: &CanonicalRay) -> bool {
+    if bvh.stack_need() <= STACK {
+        occluded_with(bvh, ray, &mut ArrayStack::<STACK>::new())
+    } else {
+        occluded_with(bvh, ray, &mut Vec::with_capacity(bvh.stack_need()))
+    }
+}
+
+#[inline(always)]
+fn occluded_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, stack: &mut S) -> bool {
+    let sheared = ShearedRay::new(ray.origin, ray.dir);
+    let box_ray = BoxRay::new(ray.origin, ray.dir);
+    let t_max = ray.t_max;
+    let t_cull = cull_distance(t_max);
+    let mut cur = Some(bvh.root);
+    loop {
+        while let Some(r) = cur {
+            if r & LEAF_BIT == 0 {
+                let node = &bvh.nodes[r as usize];
+                let (t_near, mask) = box_ray.test(&node.bounds, t_cull);
+                cur = descend(stack, &node.child, t_near, mask, false);
+            } else {
+                let (b, count) = leaf_parts(r);
+                let h = intersect_block(&sheared, &bvh.blocks[b], count, t_max);
+                if h.mask.and(h.t.lt(F4::splat(t_max))).bitmask() != 0 {
+                    return true;
+                }
+                cur = None;
+            }
+        }
+        match stack.pop() {
+            None => return false,
+            Some((r, _)) => cur = Some(r),
+        }
     }
 }

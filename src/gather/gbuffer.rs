@@ -5,11 +5,14 @@
 use glam::{Vec2, Vec3, vec2};
 use rayon::prelude::*;
 
-use crate::accel::Accel;
+use super::Tracing;
+use crate::accel::rays::block_size;
+use crate::accel::{Accel, Hit};
 use crate::sampling::{IndependentSampler, Sampler};
-use crate::scene::{Camera, Scene};
+use crate::scene::{Camera, Ray, Scene};
+use crate::simd::{F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
-use crate::vpl::transfer::{Receiver, primary_receiver};
+use crate::vpl::transfer::{Receiver, receiver_from_hit};
 
 /// Stream tag of G-buffer jitter.
 const TAG_GBUFFER: u64 = 0x4742_5546;
@@ -34,7 +37,9 @@ pub struct GBuffer {
 }
 
 /// Traces one ray per pixel through a position jittered by `(seed, pass)` (pixel centres when
-/// `jitter` is false), following up to `max_specular` specular bounces.
+/// `jitter` is false), following up to `max_specular` specular bounces. With packet `tracing`
+/// the camera rays of 4×2 pixel blocks are traced as one 8-wide packet (bounces stay single
+/// rays); the result is the same G-buffer.
 pub fn trace(
     scene: &Scene,
     accel: &Accel,
@@ -42,38 +47,61 @@ pub fn trace(
     seed: u64,
     jitter: bool,
     max_specular: u32,
+    tracing: Tracing,
     stats: &mut RayStats,
 ) -> GBuffer {
     let (w, h) = (camera.width, camera.height);
-    type Row = Vec<(Option<Receiver>, Vec3, f32)>;
-    let rows: Vec<(Row, RayStats)> = (0..h)
+    let (bw, bh) = if tracing == Tracing::Single { (1, 1) } else { block_size::<F8>() };
+    type Px = (Option<Receiver>, Vec3, f32);
+    // The camera ray of a pixel and the sampler that continues its specular bounces.
+    let setup = |x: u32, y: u32| {
+        let pixel = y as u64 * w as u64 + x as u64;
+        let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
+        let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
+        let lens = s.next_2d();
+        (s, camera.generate_ray(vec2(x as f32, y as f32) + off, lens))
+    };
+    let finish = |mut s: IndependentSampler, ray: Ray, first: Option<Hit>, st: &mut RayStats| -> Px {
+        let (r, e) = receiver_from_hit(scene, accel, ray, first, &mut || s.next_1d(), max_specular, st);
+        let depth = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
+        (r, e, depth)
+    };
+    let bands: Vec<(Vec<Px>, RayStats)> = (0..h.div_ceil(bh))
         .into_par_iter()
-        .map(|y| {
+        .map(|band| {
+            let y0 = band * bh;
+            let rows = bh.min(h - y0);
             let mut st = RayStats::default();
-            let row = (0..w)
-                .map(|x| {
-                    let pixel = y as u64 * w as u64 + x as u64;
-                    let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
-                    let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
-                    let lens = s.next_2d();
-                    let raster = vec2(x as f32, y as f32) + off;
-                    let (r, e) = primary_receiver(
-                        scene,
-                        accel,
-                        camera,
-                        raster,
-                        lens,
-                        &mut || s.next_1d(),
-                        max_specular,
-                        &mut st,
-                    );
-                    let depth = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
-                    (r, e, depth)
-                })
-                .collect();
-            (row, st)
+            let mut out: Vec<Px> = vec![(None, Vec3::ZERO, 0.0); (rows * w) as usize];
+            let mut block = Vec::with_capacity(F8::LANES);
+            for x0 in (0..w).step_by(bw as usize) {
+                for i in 0..(bw * bh) {
+                    let (x, y) = (x0 + i % bw, y0 + i / bw);
+                    if x < w && y < h {
+                        let (s, ray) = setup(x, y);
+                        block.push((x, y - y0, s, ray));
+                    }
+                }
+                st.closest += block.len() as u64;
+                if tracing == Tracing::Single {
+                    for (x, y, s, ray) in block.drain(..) {
+                        let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
+                        out[(y * w + x) as usize] = finish(s, ray, first, &mut st);
+                    }
+                } else {
+                    let packet = RayPacket::<F8>::from_fn(|i| {
+                        block.get(i).map(|(_, _, _, r)| LaneRay::new(r.origin, r.dir, f32::INFINITY))
+                    });
+                    let hits = accel.intersect_packet(&packet);
+                    for (i, (x, y, s, ray)) in block.drain(..).enumerate() {
+                        out[(y * w + x) as usize] = finish(s, ray, hits.lane(i), &mut st);
+                    }
+                }
+            }
+            (out, st)
         })
         .collect();
+    let rows: Vec<(Vec<Px>, RayStats)> = bands;
     let n = (w * h) as usize;
     let mut g = GBuffer {
         width: w,
@@ -84,9 +112,9 @@ pub fn trace(
         normal: Vec::with_capacity(n),
         depth: Vec::with_capacity(n),
     };
-    for (row, st) in rows {
+    for (band, st) in rows {
         *stats += st;
-        for (r, e, d) in row {
+        for (r, e, d) in band {
             g.albedo.push(r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO));
             g.normal.push(r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO));
             g.depth.push(d);

@@ -9,3 +9,20 @@ pub mod shade;
 pub use gbuffer::GBuffer;
 pub use interleave::Interleave;
 pub use shade::{GatherEnergy, gather};
+
+/// How the G-buffer and the gather trace their rays (all give the same image: packet lanes equal
+/// single rays, `tests/packet_vs_scalar.rs`; the choice is speed only, `benches/gather.rs`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tracing {
+    /// One ray at a time (the fast single-ray traversal).
+    Single,
+    /// 8-wide packets: primary rays of 4×2 pixel blocks; shadow rays grouped by shared end
+    /// point — the pixels of a row that gather the same VPL subset (every n-th pixel) towards
+    /// one VPL of it.
+    #[default]
+    SharedEnd,
+    /// 8-wide packets: primary rays of 4×2 pixel blocks; shadow rays grouped by shared origin —
+    /// one pixel towards the VPLs of its subset (packets are only full with ≥ 8 VPLs per
+    /// subset, i.e. m ≥ 8·n·m).
+    SharedOrigin,
+}

@@ -98,12 +98,32 @@ pub fn primary_receiver(
     max_specular: u32,
     stats: &mut RayStats,
 ) -> (Option<Receiver>, Vec3) {
-    let mut ray = camera.generate_ray(raster, u_lens);
+    let ray = camera.generate_ray(raster, u_lens);
+    stats.closest += 1;
+    let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
+    receiver_from_hit(scene, accel, ray, first, u_specular, max_specular, stats)
+}
+
+/// [`primary_receiver`] continued from the camera ray `ray` whose closest hit `first` is already
+/// known (traced in a packet by the G-buffer), with the same specular bounces.
+pub fn receiver_from_hit(
+    scene: &Scene,
+    accel: &Accel,
+    mut ray: crate::scene::Ray,
+    first: Option<crate::accel::Hit>,
+    u_specular: &mut impl FnMut() -> f32,
+    max_specular: u32,
+    stats: &mut RayStats,
+) -> (Option<Receiver>, Vec3) {
     let mut beta = Vec3::ONE;
     let mut emitted = Vec3::ZERO;
+    let mut next = first;
     for bounce in 0..=max_specular {
-        stats.closest += 1;
-        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { return (None, emitted) };
+        if bounce > 0 {
+            stats.closest += 1;
+            next = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
+        }
+        let Some(hit) = next else { return (None, emitted) };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
         let wo = -ray.dir;
         emitted += beta * scene.emitted(hit.tri, sp.ng, sp.uv, wo);

@@ -1,0 +1,781 @@
+//! Packet traversal: 4 or 8 coherent rays through our wide BVH at once (Wald, Slusallek,
+//! Benthin & Wagner 2001, "Interactive rendering with coherent ray tracing"; on wide nodes as
+//! in Embree's packet kernels).
+//!
+//! - **Node test:** each child box against all lanes with one SIMD operation per plane, the
+//!   same slab test as single rays (near plane by each lane's direction sign, NaN slabs of rays
+//!   lying in a face ignored, far distance scaled by [`ROBUST`], culling by
+//!   [`super::single::cull_distance`]). A child is visited when *any* active lane hits
+//!   it; its stack entry keeps every lane's entry distance (+∞ for lanes that missed), so on
+//!   popping, only lanes whose closest hit lies beyond the entry are still active.
+//! - **Order:** children are visited front to back along the packet's dominant direction (the
+//!   octant of the sum of its directions), from the per-node order lists built with the tree.
+//! - **Triangles:** one triangle against all lanes at once ([`intersect_packet`]), with the same
+//!   arithmetic as the single-ray test so every lane gets exactly the single ray's answer.
+//! - **Occlusion:** a lane leaves the packet as soon as it is blocked (its t_max becomes −∞),
+//!   and the traversal stops when every lane is blocked.
+//! - **Offsets:** packets carry world rays exactly as single rays do; rays leaving a surface
+//!   use [`super::offset_origin`] (see the builders in [`super::rays`]).
+//!
+//! Each lane is mapped to the canonical frame by the same scalar code as a single ray
+//! ([`Accel::canonical`]), so hit/miss, triangle and t equal [`Accel::intersect`]'s.
+//! Zero-length, NaN or t_max ≤ 0 lanes are inactive and report no hit.
+
+use glam::{Vec3, Vec3A};
+
+use super::single::{CULL_SLACK, CanonicalRay, ROBUST, closest, occluded};
+use super::triangle::{ShearPacket, intersect_packet};
+use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
+use super::{Accel, Hit};
+use crate::simd::{F8, Lanes, RayPacket, Vec3x};
+
+/// Closest hits of a packet, lane by lane.
+#[derive(Clone, Copy, Debug)]
+pub struct PacketHits<F: Lanes> {
+    /// Bit i set when lane i hit something.
+    pub hit: u32,
+    /// Distances in units of each lane's direction length.
+    pub t: F,
+    /// Scene triangle indices as bit patterns (read with [`PacketHits::tri`]).
+    pub tri_bits: F,
+    /// Barycentric weights of the second corners.
+    pub b1: F,
+    /// Barycentric weights of the third corners.
+    pub b2: F,
+}
+
+impl<F: Lanes> PacketHits<F> {
+    /// The scene triangle hit by lane `i` (meaningless when the lane missed).
+    #[inline]
+    pub fn tri(&self, i: usize) -> u32 {
+        self.tri_bits.lane_bits(i)
+    }
+
+    /// Lane `i` as a single-ray result.
+    #[inline]
+    pub fn lane(&self, i: usize) -> Option<Hit> {
+        (self.hit >> i & 1 != 0).then(|| Hit {
+            t: self.t.lane(i),
+            tri: self.tri(i),
+            b1: self.b1.lane(i),
+            b2: self.b2.lane(i),
+        })
+    }
+}
+
+/// Conservative culling of the children of a node for a whole packet.
+trait Cull {
+    /// Lower bounds of the lanes' entry distances into the 8 children, and the mask of the
+    /// children that some lane may enter at or before `t_cull`.
+    fn test(&self, bounds: &[[f32; 8]; 6], t_cull: f32) -> (F8, u32);
+}
+
+/// The packet's frustum as planes through a common apex (the shared origin of primary rays, or
+/// the shared end point of shadow rays traced backwards): four side planes bounding the lanes'
+/// directions around a central axis `c`, and the plane through the apex normal to `c` (Reshetov,
+/// Soupikov & Hurley 2005; Benthin & Wald 2009). A child is culled when its box lies entirely
+/// outside one plane, or starts (along `c`) beyond the culling distance. With 8 children per
+/// SIMD register this costs about as much as one single-ray node test, whatever the direction
+/// components (unlike interval arithmetic on 1/d, which degenerates near zero components).
+/// Conservative: planes are widened by the rounding of their construction and by the spread of
+/// the lanes' apexes.
+struct PlaneFrustum {
+    apex: [F8; 3],
+    /// Side planes `n·(p − apex) ≥ −eps`: per plane, per axis the `bounds` row of the box vertex
+    /// farthest along n, and n.
+    rows: [[usize; 3]; 4],
+    normals: [[F8; 3]; 4],
+    eps: [F8; 4],
+    /// Central axis: rows of the vertex nearest along c, c itself.
+    c_rows: [usize; 3],
+    c: [F8; 3],
+    /// Margin of the distance along c (apex spread and rounding).
+    c_eps: f32,
+}
+
+impl PlaneFrustum {
+    /// The frustum of unit directions `dir` (lanes in `active`) from apexes within `spread` of
+    /// `apex`; None when the directions do not fit in a cone of half-angle ~45°.
+    fn new<F: Lanes>(apex: Vec3, spread: f32, dir: &Vec3x<F>, active: u32) -> Option<Self> {
+        let sum = Vec3::new(dir.x.sum_lanes(active), dir.y.sum_lanes(active), dir.z.sum_lanes(active));
+        let c = sum.try_normalize()?;
+        let (u, v) = c.any_orthonormal_pair();
+        let (mut a_lo, mut a_hi, mut b_lo, mut b_hi) =
+            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        let (du, dv, dc) = (dir.dot(&Vec3x::splat(u)), dir.dot(&Vec3x::splat(v)), dir.dot(&Vec3x::splat(c)));
+        if dc.min_lanes(active) < 0.7 {
+            return None;
+        }
+        let (a, b) = ((du / dc).to_array(), (dv / dc).to_array());
+        for i in (0..F::LANES).filter(|i| active >> i & 1 != 0) {
+            (a_lo, a_hi) = (a_lo.min(a.as_ref()[i]), a_hi.max(a.as_ref()[i]));
+            (b_lo, b_hi) = (b_lo.min(b.as_ref()[i]), b_hi.max(b.as_ref()[i]));
+        }
+        // Widen the slopes for the rounding of their computation (1e-4 rad: at the far side of
+        // the scene, 10⁻⁴ of its size).
+        let widen = |x: f32, s: f32| x + s * 1e-4 * (1.0 + x.abs());
+        let (a_lo, a_hi, b_lo, b_hi) = (widen(a_lo, -1.0), widen(a_hi, 1.0), widen(b_lo, -1.0), widen(b_hi, 1.0));
+        let normals = [u - c * a_lo, c * a_hi - u, v - c * b_lo, c * b_hi - v];
+        let margin = spread + 4.0;
+        let row = |n: Vec3, axis: usize| 2 * axis + (n[axis] >= 0.0) as usize;
+        Some(PlaneFrustum {
+            apex: [F8::splat(apex.x), F8::splat(apex.y), F8::splat(apex.z)],
+            rows: normals.map(|n| [row(n, 0), row(n, 1), row(n, 2)]),
+            normals: normals.map(|n| [F8::splat(n.x), F8::splat(n.y), F8::splat(n.z)]),
+            eps: normals.map(|n| F8::splat(-margin * n.length())),
+            c_rows: [0, 1, 2].map(|axis| 2 * axis + (c[axis] < 0.0) as usize),
+            c: [F8::splat(c.x), F8::splat(c.y), F8::splat(c.z)],
+            c_eps: margin,
+        })
+    }
+}
+
+impl Cull for PlaneFrustum {
+    #[inline(always)]
+    fn test(&self, bounds: &[[f32; 8]; 6], t_cull: f32) -> (F8, u32) {
+        // Box corners relative to the apex: rows 2·axis (min) and 2·axis + 1 (max).
+        let rel: [F8; 6] = std::array::from_fn(|row| F8::from_array(bounds[row]) - self.apex[row / 2]);
+        let mut inside = F8::splat(0.0).le(F8::splat(0.0));
+        for k in 0..4 {
+            let [rx, ry, rz] = self.rows[k];
+            let [nx, ny, nz] = self.normals[k];
+            let dist = rel[rx] * nx + rel[ry] * ny + rel[rz] * nz;
+            inside = inside.and(dist.ge(self.eps[k]));
+        }
+        let [cx, cy, cz] = self.c_rows;
+        let along = rel[cx] * self.c[0] + rel[cy] * self.c[1] + rel[cz] * self.c[2] - F8::splat(self.c_eps);
+        // Boxes entirely behind the apex: their farthest corner along c is behind it.
+        let back = rel[cx ^ 1] * self.c[0] + rel[cy ^ 1] * self.c[1] + rel[cz ^ 1] * self.c[2];
+        let t_near = along.vmax(F8::splat(0.0));
+        let hit = inside.and(back.ge(F8::splat(-self.c_eps))).and(t_near.le(F8::splat(t_cull)));
+        (t_near, hit.bitmask())
+    }
+}
+
+/// A packet in the canonical frame with the per-lane constants of the box and triangle tests.
+struct CanonicalPacket<F: Lanes> {
+    origin: Vec3x<F>,
+    dir: Vec3x<F>,
+    rdir: Vec3x<F>,
+    /// Per axis, the lanes whose reciprocal direction is negative (near plane = max).
+    negative: [F; 3],
+    /// Canonical t_max (−∞ in inactive lanes).
+    t_max: F,
+    to_param: F,
+    shear: ShearPacket<F>,
+    active: u32,
+}
+
+impl<F: Lanes> CanonicalPacket<F> {
+    /// Maps the lanes to the canonical frame on all lanes at once: lane for lane exactly
+    /// [`Accel::canonical`] (same operations in the same order, correctly rounded division
+    /// and square root), so a lane is the very ray a single-ray query traces.
+    #[inline]
+    fn new(accel: &Accel, packet: &RayPacket<F>) -> Self {
+        let (o, d) = (&packet.origin, &packet.dir);
+        let zero = F::splat(0.0);
+        let len = (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
+        let valid = F::mask_from_bits(packet.active)
+            .and(len.gt(zero))
+            .and(len.finite())
+            .and(packet.t_max.gt(zero))
+            .and(o.x.finite())
+            .and(o.y.finite())
+            .and(o.z.finite());
+        let active = valid.bitmask();
+        let (frame, scale) = (accel.frame, F::splat(accel.frame.scale));
+        let to_param = F::splat(1.0) / (len * scale);
+        // Inactive lanes: origin 0, direction +x, empty interval.
+        let idle = |v: F, x: f32| valid.select(v, F::splat(x));
+        let origin = Vec3x {
+            x: idle((o.x - F::splat(frame.center.x)) * scale, 0.0),
+            y: idle((o.y - F::splat(frame.center.y)) * scale, 0.0),
+            z: idle((o.z - F::splat(frame.center.z)) * scale, 0.0),
+        };
+        let dir = Vec3x { x: idle(d.x / len, 1.0), y: idle(d.y / len, 0.0), z: idle(d.z / len, 0.0) };
+        let rdir = Vec3x { x: F::splat(1.0) / dir.x, y: F::splat(1.0) / dir.y, z: F::splat(1.0) / dir.z };
+        CanonicalPacket {
+            negative: [rdir.x.lt(zero), rdir.y.lt(zero), rdir.z.lt(zero)],
+            t_max: idle(packet.t_max / to_param, f32::NEG_INFINITY),
+            to_param: idle(to_param, 0.0),
+            shear: ShearPacket::from_lanes(&origin, &dir, active),
+            active,
+            origin,
+            dir,
+            rdir,
+        }
+    }
+
+    /// The octant of the sum of the lanes' directions.
+    #[inline]
+    fn octant(&self) -> usize {
+        let a = self.active;
+        octant(Vec3::new(self.dir.x.sum_lanes(a), self.dir.y.sum_lanes(a), self.dir.z.sum_lanes(a)))
+    }
+
+    /// Lane `i` as a single canonical ray.
+    #[inline]
+    fn ray(&self, i: usize) -> CanonicalRay {
+        CanonicalRay {
+            origin: self.origin.lane(i),
+            dir: self.dir.lane(i),
+            t_max: self.t_max.lane(i),
+            to_param: self.to_param.lane(i),
+        }
+    }
+
+    /// Entry distances of the lanes into child `slot` of `node` and the mask of lanes that
+    /// enter it at or before their `t_cull` (lane for lane [`super::single::box_hit_scalar`]).
+    #[inline(always)]
+    fn test_child<const W: usize>(&self, node: &Node<W>, slot: usize, t_cull: F) -> (F, F) {
+        let b = &node.bounds;
+        let slab = |axis: usize, o: F, r: F| {
+            let lo = (F::splat(b[2 * axis][slot]) - o) * r;
+            let hi = (F::splat(b[2 * axis + 1][slot]) - o) * r;
+            let neg = self.negative[axis];
+            (neg.select(hi, lo), neg.select(lo, hi))
+        };
+        let (nx, fx) = slab(0, self.origin.x, self.rdir.x);
+        let (ny, fy) = slab(1, self.origin.y, self.rdir.y);
+        let (nz, fz) = slab(2, self.origin.z, self.rdir.z);
+        // Slab first: a NaN slab (ray in the plane) is ignored.
+        let t_near = nx.vmax(ny.vmax(nz.vmax(F::splat(0.0))));
+        let t_far = fx.vmin(fy.vmin(fz.vmin(F::splat(f32::INFINITY))));
+        (t_near, t_near.le((t_far * F::splat(ROBUST)).vmin(t_cull)))
+    }
+}
+
+/// Capacity of the array stack of packet traversals (trees needing more use a `Vec`).
+const STACK: usize = 128;
+
+/// A packet traversal stack of (reference, the lanes' entry distances).
+trait PacketStack<F: Lanes> {
+    fn push(&mut self, r: u32, t: F);
+    fn pop(&mut self) -> Option<(u32, F)>;
+}
+
+/// A stack in fixed arrays (no allocation).
+struct ArrayStack<F: Lanes, const N: usize> {
+    refs: [u32; N],
+    t: [F; N],
+    len: usize,
+}
+
+impl<F: Lanes, const N: usize> ArrayStack<F, N> {
+    #[inline(always)]
+    fn new() -> Self {
+        ArrayStack { refs: [0; N], t: [F::splat(0.0); N], len: 0 }
+    }
+}
+
+impl<F: Lanes, const N: usize> PacketStack<F> for ArrayStack<F, N> {
+    #[inline(always)]
+    fn push(&mut self, r: u32, t: F) {
+        self.refs[self.len] = r;
+        self.t[self.len] = t;
+        self.len += 1;
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, F)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some((self.refs[self.len], self.t[self.len]))
+    }
+}
+
+impl<F: Lanes> PacketStack<F> for Vec<(u32, F)> {
+    #[inline(always)]
+    fn push(&mut self, r: u32, t: F) {
+        Vec::push(self, (r, t));
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, F)> {
+        Vec::pop(self)
+    }
+}
+
+/// Visits the children of `node` hit by some lane of `lanes` (culling distance per lane),
+/// pushing them so that the nearest along the packet's octant is on top.
+#[inline(always)]
+fn push_children<F: Lanes, const W: usize>(
+    p: &CanonicalPacket<F>,
+    node: &Node<W>,
+    t_cull: F,
+    lanes: F,
+    stack: &mut impl PacketStack<F>,
+) {
+    let order = node.order[p.octant()];
+    let mut hits = [(0u32, F::splat(0.0)); 8];
+    let mut n = 0;
+    for k in 0..W {
+        let slot = (order >> (4 * k)) as usize & 15;
+        let c = node.child[slot];
+        if c == EMPTY {
+            break;
+        }
+        let (t_near, m) = p.test_child(node, slot, t_cull);
+        let m = m.and(lanes);
+        if m.bitmask() != 0 {
+            hits[n] = (c, m.select(t_near, F::splat(f32::INFINITY)));
+            n += 1;
+        }
+    }
+    for &(c, t) in hits[..n].iter().rev() {
+        stack.push(c, t);
+    }
+}
+
+impl Accel {
+    /// Closest hits of the rays of `packet` (world space, as [`Accel::intersect`] per lane).
+    pub fn intersect_packet<F: Lanes>(&self, packet: &RayPacket<F>) -> PacketHits<F> {
+        let p = CanonicalPacket::new(self, packet);
+        let (hit, t, tri_bits, b1, b2) = match p.forward_frustum() {
+            None => closest_lanes(&self.wide, &p),
+            Some(f) if self.wide.stack_need() <= STACK => {
+                closest_frustum(&self.wide, &p, &f, &mut ArrayStack3::<STACK>::new())
+            }
+            Some(f) => closest_frustum(&self.wide, &p, &f, &mut Vec::with_capacity(self.wide.stack_need())),
+        };
+        PacketHits { hit, t: t * p.to_param, tri_bits, b1, b2 }
+    }
+
+    /// Occlusion of the rays of `packet` (as [`Accel::occluded`] per lane): bit i set when
+    /// lane i is blocked.
+    pub fn occluded_packet<F: Lanes>(&self, packet: &RayPacket<F>) -> u32 {
+        let p = CanonicalPacket::new(self, packet);
+        match p.segment_frustum() {
+            None => occluded_lanes(&self.wide, &p),
+            Some((f, length)) if self.wide.stack_need() <= STACK => {
+                occluded_frustum(&self.wide, &p, &f, length, &mut ArrayStack3::<STACK>::new())
+            }
+            Some((f, length)) => {
+                occluded_frustum(&self.wide, &p, &f, length, &mut Vec::with_capacity(self.wide.stack_need()))
+            }
+        }
+    }
+
+    #[doc(hidden)]
+    /// The lane-wise packet traversal (each child against all lanes): kept for measurements.
+    pub fn intersect_packet_lanewise<F: Lanes>(&self, packet: &RayPacket<F>) -> PacketHits<F> {
+        let p = CanonicalPacket::new(self, packet);
+        let (hit, t, tri_bits, b1, b2) = closest_packet(&self.wide, &p, &mut ArrayStack::<F, STACK>::new());
+        PacketHits { hit, t: t * p.to_param, tri_bits, b1, b2 }
+    }
+
+    #[doc(hidden)]
+    /// The lane-wise packet traversal (each child against all lanes): kept for measurements.
+    pub fn occluded_packet_lanewise<F: Lanes>(&self, packet: &RayPacket<F>) -> u32 {
+        let p = CanonicalPacket::new(self, packet);
+        occluded_packet(&self.wide, &p, &mut ArrayStack::<F, STACK>::new())
+    }
+}
+
+impl<F: Lanes> CanonicalPacket<F> {
+    /// Centre and radius of the box around the points `v` of the active lanes.
+    #[inline]
+    fn bounds_of(&self, v: &Vec3x<F>) -> (Vec3, f32) {
+        let a = self.active;
+        let lo = Vec3::new(v.x.min_lanes(a), v.y.min_lanes(a), v.z.min_lanes(a));
+        let hi = Vec3::new(v.x.max_lanes(a), v.y.max_lanes(a), v.z.max_lanes(a));
+        (0.5 * (lo + hi), 0.5 * (hi - lo).length())
+    }
+
+    /// The frustum of the rays from their origins (None: too incoherent).
+    #[inline]
+    fn forward_frustum(&self) -> Option<PlaneFrustum> {
+        let (apex, spread) = self.bounds_of(&self.origin);
+        PlaneFrustum::new(apex, spread, &self.dir, self.active)
+    }
+
+    /// The frustum bounding the rays' segments (0, t_max] for occlusion, and the distance its
+    /// tests cull at: from the origins (culling at each lane's t_max), or, when the segments'
+    /// end points are closer together than their origins (shadow rays to one light or VPL),
+    /// traced backwards from the end points (Some(largest segment length)). The backward
+    /// frustum contains every point of every segment, so it culls conservatively; exact tests
+    /// stay in the forward direction. None: too incoherent.
+    #[inline]
+    fn segment_frustum(&self) -> Option<(PlaneFrustum, Option<f32>)> {
+        let a = self.active;
+        let (apex, spread) = self.bounds_of(&self.origin);
+        if a != 0 && self.t_max.finite().bitmask() & a == a {
+            let o = &self.origin;
+            let t = self.t_max;
+            let end = Vec3x { x: o.x + self.dir.x * t, y: o.y + self.dir.y * t, z: o.z + self.dir.z * t };
+            let (end_apex, end_spread) = self.bounds_of(&end);
+            if end_spread < spread {
+                // The end points carry the rounding of o + d·t: widen by that.
+                let rounding = (end_apex.abs().max_element() + end_spread) * (1.0 / 1_048_576.0) + CULL_SLACK;
+                let zero = F::splat(0.0);
+                let back = Vec3x { x: zero - self.dir.x, y: zero - self.dir.y, z: zero - self.dir.z };
+                let length = t.max_lanes(a) * ROBUST + CULL_SLACK;
+                return PlaneFrustum::new(end_apex, end_spread + rounding, &back, a).map(|f| (f, Some(length)));
+            }
+        }
+        PlaneFrustum::new(apex, spread, &self.dir, a).map(|f| (f, None))
+    }
+
+    /// Per-lane culling distances.
+    #[inline(always)]
+    fn cull(t: F) -> F {
+        t * F::splat(ROBUST) + F::splat(CULL_SLACK)
+    }
+}
+
+/// The largest lane of `t` among `lanes` (−∞ when none).
+#[inline(always)]
+fn max_lane<F: Lanes>(t: F, lanes: u32) -> f32 {
+    let a = t.to_array();
+    a.as_ref().iter().enumerate().filter(|(i, _)| lanes >> i & 1 != 0).fold(f32::NEG_INFINITY, |m, (_, &x)| m.max(x))
+}
+
+/// A traversal stack of (reference, entry distance, lanes).
+trait Stack3 {
+    fn push(&mut self, e: (u32, f32, u32));
+    fn pop(&mut self) -> Option<(u32, f32, u32)>;
+}
+
+struct ArrayStack3<const N: usize> {
+    items: [(u32, f32, u32); N],
+    len: usize,
+}
+
+impl<const N: usize> ArrayStack3<N> {
+    #[inline(always)]
+    fn new() -> Self {
+        ArrayStack3 { items: [(0, 0.0, 0); N], len: 0 }
+    }
+}
+
+impl<const N: usize> Stack3 for ArrayStack3<N> {
+    #[inline(always)]
+    fn push(&mut self, e: (u32, f32, u32)) {
+        self.items[self.len] = e;
+        self.len += 1;
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32, u32)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.items[self.len])
+    }
+}
+
+impl Stack3 for Vec<(u32, f32, u32)> {
+    #[inline(always)]
+    fn push(&mut self, e: (u32, f32, u32)) {
+        Vec::push(self, e);
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32, u32)> {
+        Vec::pop(self)
+    }
+}
+
+/// Frustum test of the children of `node`; leaf children also get the exact per-lane test
+/// (their lanes). Pushes the hit children far to near and returns the nearest, or None.
+#[inline(always)]
+fn descend_frustum<F: Lanes>(
+    p: &CanonicalPacket<F>,
+    frustum: &impl Cull,
+    node: &Node<8>,
+    cull_max: f32,
+    t_cull: F,
+    alive: u32,
+    stack: &mut impl Stack3,
+) -> Option<(u32, u32)> {
+    let (t_near, mut mask) = frustum.test(&node.bounds, cull_max);
+    if mask == 0 {
+        return None;
+    }
+    let t = t_near.to_array();
+    let mut hits = [(0u32, 0.0f32, 0u32); 8];
+    let mut n = 0;
+    while mask != 0 {
+        let slot = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        let c = node.child[slot];
+        let lanes = if c & LEAF_BIT != 0 {
+            let (_, m) = p.test_child(node, slot, t_cull);
+            m.bitmask() & alive
+        } else {
+            alive
+        };
+        if lanes != 0 {
+            hits[n] = (c, t[slot], lanes);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return None;
+    }
+    // Far to near, so that the nearest is popped first.
+    let hits = &mut hits[..n];
+    for i in 1..hits.len() {
+        let mut j = i;
+        while j > 0 && hits[j - 1].1 < hits[j].1 {
+            hits.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    for &h in &hits[..n - 1] {
+        stack.push(h);
+    }
+    Some((hits[n - 1].0, hits[n - 1].2))
+}
+
+/// Closest hits of a coherent packet: frustum traversal, exact lane tests at leaves.
+#[inline(always)]
+fn closest_frustum<F: Lanes>(
+    bvh: &WideBvh<8>,
+    p: &CanonicalPacket<F>,
+    frustum: &impl Cull,
+    stack: &mut impl Stack3,
+) -> (u32, F, F, F, F) {
+    let mut best_t = p.t_max;
+    let mut best_id = F::splat_bits(EMPTY);
+    let (mut best_b1, mut best_b2) = (F::splat(0.0), F::splat(0.0));
+    let mut found = 0u32;
+    let mut t_cull = CanonicalPacket::<F>::cull(best_t);
+    let mut cull_max = max_lane(t_cull, p.active);
+    let mut cur = (p.active != 0).then_some((bvh.root, p.active));
+    loop {
+        while let Some((r, lanes)) = cur {
+            if r & LEAF_BIT == 0 {
+                cur = descend_frustum(p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, p.active, stack);
+                continue;
+            }
+            let (b, count) = leaf_parts(r);
+            let block = &bvh.blocks[b];
+            let lane_mask = F::mask_from_bits(lanes);
+            let mut changed = false;
+            for k in 0..count {
+                let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
+                let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), best_t, lane_mask);
+                if h.mask.bitmask() == 0 {
+                    continue;
+                }
+                let id = F::splat_bits(block.id[k]);
+                let mut better = h.mask.and(h.t.lt(best_t));
+                let ties = h.mask.and(h.t.eq(best_t)).bitmask();
+                if ties != 0 {
+                    // Equal t: the smaller scene index wins (as for single rays).
+                    let tie_wins = (0..F::LANES)
+                        .filter(|&i| ties >> i & 1 != 0 && block.id[k] < best_id.lane_bits(i))
+                        .fold(0u32, |m, i| m | 1 << i);
+                    better = better.or(F::mask_from_bits(tie_wins));
+                }
+                let bits = better.bitmask();
+                if bits != 0 {
+                    best_t = better.select(h.t, best_t);
+                    best_id = better.select(id, best_id);
+                    best_b1 = better.select(h.b1, best_b1);
+                    best_b2 = better.select(h.b2, best_b2);
+                    found |= bits;
+                    changed = true;
+                }
+            }
+            if changed {
+                t_cull = CanonicalPacket::<F>::cull(best_t);
+                cull_max = max_lane(t_cull, p.active);
+            }
+            cur = None;
+        }
+        loop {
+            match stack.pop() {
+                None => return (found, best_t, best_id, best_b1, best_b2),
+                Some((r, t, lanes)) if t <= cull_max => {
+                    cur = Some((r, lanes));
+                    break;
+                }
+                Some(_) => {}
+            }
+        }
+    }
+}
+
+/// Occlusion of a coherent packet: frustum traversal, exact lane tests at leaves; blocked
+/// lanes drop out and the traversal ends when all are blocked.
+#[inline(always)]
+fn occluded_frustum<F: Lanes>(
+    bvh: &WideBvh<8>,
+    p: &CanonicalPacket<F>,
+    frustum: &impl Cull,
+    reversed_length: Option<f32>,
+    stack: &mut impl Stack3,
+) -> u32 {
+    let mut t_max = p.t_max;
+    let mut t_cull = CanonicalPacket::<F>::cull(t_max);
+    let mut alive = p.active;
+    // The frustum's culling distance: the lanes' (shrinking as lanes are blocked), or the
+    // reversed frustum's fixed length.
+    let frustum_cull = |t_cull: F, alive: u32| reversed_length.unwrap_or_else(|| max_lane(t_cull, alive));
+    let mut cull_max = frustum_cull(t_cull, alive);
+    let mut cur = (alive != 0).then_some((bvh.root, alive));
+    loop {
+        while let Some((r, lanes)) = cur {
+            if r & LEAF_BIT == 0 {
+                cur = descend_frustum(p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, alive, stack);
+                continue;
+            }
+            let (b, count) = leaf_parts(r);
+            let block = &bvh.blocks[b];
+            let mut lanes = lanes & alive;
+            for k in 0..count {
+                if lanes == 0 {
+                    break;
+                }
+                let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
+                let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), t_max, F::mask_from_bits(lanes));
+                let now = h.mask.and(h.t.lt(t_max));
+                let bits = now.bitmask();
+                if bits != 0 {
+                    alive &= !bits;
+                    if alive == 0 {
+                        return p.active;
+                    }
+                    lanes &= !bits;
+                    t_max = now.select(F::splat(f32::NEG_INFINITY), t_max);
+                    t_cull = now.select(F::splat(f32::NEG_INFINITY), t_cull);
+                    cull_max = frustum_cull(t_cull, alive);
+                }
+            }
+            cur = None;
+        }
+        loop {
+            match stack.pop() {
+                None => return p.active & !alive,
+                Some((r, t, lanes)) if t <= cull_max && lanes & alive != 0 => {
+                    cur = Some((r, lanes & alive));
+                    break;
+                }
+                Some(_) => {}
+            }
+        }
+    }
+}
+
+/// Closest hits of an incoherent packet, lane by lane with the single-ray traversal.
+fn closest_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> (u32, F, F, F, F) {
+    let mut hits = [(f32::INFINITY, EMPTY, 0.0f32, 0.0f32); 16];
+    let mut found = 0;
+    for (i, h) in hits.iter_mut().enumerate().take(F::LANES) {
+        if p.active >> i & 1 != 0
+            && let Some((t, tri, b1, b2)) = closest(bvh, &p.ray(i))
+        {
+            *h = (t, tri, b1, b2);
+            found |= 1 << i;
+        }
+    }
+    (
+        found,
+        F::from_fn(|i| hits[i].0),
+        F::from_fn(|i| f32::from_bits(hits[i].1)),
+        F::from_fn(|i| hits[i].2),
+        F::from_fn(|i| hits[i].3),
+    )
+}
+
+/// Occlusion of an incoherent packet, lane by lane with the single-ray traversal.
+fn occluded_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> u32 {
+    (0..F::LANES).filter(|&i| p.active >> i & 1 != 0 && occluded(bvh, &p.ray(i))).fold(0, |m, i| m | 1 << i)
+}
+
+#[inline(always)]
+fn closest_packet<F: Lanes, const W: usize>(
+    bvh: &WideBvh<W>,
+    p: &CanonicalPacket<F>,
+    stack: &mut impl PacketStack<F>,
+) -> (u32, F, F, F, F) {
+    let inf = F::splat(f32::INFINITY);
+    let mut best_t = p.t_max;
+    let mut best_id = F::splat_bits(EMPTY);
+    let (mut best_b1, mut best_b2) = (F::splat(0.0), F::splat(0.0));
+    let mut found = F::splat(0.0).lt(F::splat(0.0));
+    if p.active != 0 {
+        stack.push(bvh.root, F::mask_from_bits(p.active).select(F::splat(0.0), inf));
+    }
+    while let Some((r, t_entry)) = stack.pop() {
+        let t_cull = best_t * F::splat(ROBUST) + F::splat(CULL_SLACK);
+        let lanes = t_entry.le(t_cull);
+        if lanes.bitmask() == 0 {
+            continue;
+        }
+        if r & LEAF_BIT == 0 {
+            push_children(p, &bvh.nodes[r as usize], t_cull, lanes, stack);
+            continue;
+        }
+        let (b, count) = leaf_parts(r);
+        let block = &bvh.blocks[b];
+        for k in 0..count {
+            let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
+            let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), best_t, lanes);
+            if h.mask.bitmask() == 0 {
+                continue;
+            }
+            let id = F::splat_bits(block.id[k]);
+            let mut better = h.mask.and(h.t.lt(best_t));
+            let ties = h.mask.and(h.t.eq(best_t)).bitmask();
+            if ties != 0 {
+                // Equal t: the smaller scene index wins (as for single rays).
+                let tie_wins = (0..F::LANES)
+                    .filter(|&i| ties >> i & 1 != 0 && block.id[k] < best_id.lane_bits(i))
+                    .fold(0u32, |m, i| m | 1 << i);
+                better = better.or(F::mask_from_bits(tie_wins));
+            }
+            best_t = better.select(h.t, best_t);
+            best_id = better.select(id, best_id);
+            best_b1 = better.select(h.b1, best_b1);
+            best_b2 = better.select(h.b2, best_b2);
+            found = found.or(better);
+        }
+    }
+    (found.bitmask(), best_t, best_id, best_b1, best_b2)
+}
+
+#[inline(always)]
+fn occluded_packet<F: Lanes, const W: usize>(
+    bvh: &WideBvh<W>,
+    p: &CanonicalPacket<F>,
+    stack: &mut impl PacketStack<F>,
+) -> u32 {
+    let inf = F::splat(f32::INFINITY);
+    let mut t_max = p.t_max;
+    let mut t_cull = t_max * F::splat(ROBUST) + F::splat(CULL_SLACK);
+    let mut blocked = 0u32;
+    if p.active != 0 {
+        stack.push(bvh.root, F::mask_from_bits(p.active).select(F::splat(0.0), inf));
+    }
+    while let Some((r, t_entry)) = stack.pop() {
+        let lanes = t_entry.le(t_cull);
+        if lanes.bitmask() == 0 {
+            continue;
+        }
+        if r & LEAF_BIT == 0 {
+            push_children(p, &bvh.nodes[r as usize], t_cull, lanes, stack);
+            continue;
+        }
+        let (b, count) = leaf_parts(r);
+        let block = &bvh.blocks[b];
+        let mut lanes = lanes;
+        for k in 0..count {
+            let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
+            let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), t_max, lanes);
+            let now = h.mask.and(h.t.lt(t_max));
+            let bits = now.bitmask();
+            if bits != 0 {
+                blocked |= bits;
+                if blocked == p.active {
+                    return blocked;
+                }
+                t_max = now.select(F::splat(f32::NEG_INFINITY), t_max);
+                t_cull = now.select(F::splat(f32::NEG_INFINITY), t_cull);
+                lanes = lanes.and_not(now);
+            }
+        }
+    }
+    blocked
+}

@@ -1,0 +1,363 @@
+//! Measurement reports: error against a cached reference as a function of render time for
+//! every mode (`mirage converge`), and the VPL-sampler comparison of papers/002 §7.3–7.5
+//! (`mirage samplers`). Both write markdown (and an SVG plot for convergence) for
+//! benches/results/.
+//!
+//! The reference of a scene is a long path-traced render, cached under `target/reference/`
+//! and keyed by scene name, resolution and sample count, so reports re-run cheaply.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use indicatif::ProgressBar;
+
+use crate::accel::Accel;
+use crate::film::Image;
+use crate::frame::{self, Accumulation, FrameSettings};
+use crate::offline::{self, Budget, OfflineSettings, bdpt::BdptOptions};
+use crate::options::{KernelArg, SamplerConfig, VplSamplerArg};
+use crate::output;
+use crate::scene::Scene;
+
+/// A rendering method in a report.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Method {
+    /// Path tracing.
+    Pt,
+    /// Bidirectional path tracing.
+    Bdpt,
+    /// A VPL sampler with the frame pipeline (ir or mir).
+    Vpl {
+        /// The sampler.
+        sampler: VplSamplerArg,
+        /// Its settings.
+        config: SamplerConfig,
+    },
+}
+
+impl Method {
+    /// Parses `pt`, `bdpt`, `sir`, `sir-cdf`, `bir`, `mh`, `mtmh`, with optional suffixes
+    /// `-pss` (primary-sample-space kernel) and `-cdf` (light-source CDF) for mh / mtmh.
+    pub fn parse(s: &str) -> Result<Method, String> {
+        let mut config = SamplerConfig::default();
+        let sampler = match s {
+            "pt" => return Ok(Method::Pt),
+            "bdpt" => return Ok(Method::Bdpt),
+            "sir" => VplSamplerArg::Sir,
+            "sir-cdf" => VplSamplerArg::SirCdf,
+            "bir" => VplSamplerArg::Bir,
+            other => {
+                let mut parts = other.split('-');
+                let base = match parts.next() {
+                    Some("mh") => VplSamplerArg::Mh,
+                    Some("mtmh") => VplSamplerArg::Mtmh,
+                    _ => {
+                        return Err(format!(
+                            "unknown method '{s}' (pt, bdpt, sir, sir-cdf, bir, mh[-pss][-cdf], mtmh[-pss][-cdf])"
+                        ));
+                    }
+                };
+                for p in parts {
+                    match p {
+                        "pss" => config.kernel = KernelArg::Pss,
+                        "bidir" => config.kernel = KernelArg::Bidir,
+                        "cdf" => config.light_cdf = true,
+                        _ => return Err(format!("unknown suffix '-{p}' in method '{s}'")),
+                    }
+                }
+                base
+            }
+        };
+        Ok(Method::Vpl { sampler, config })
+    }
+
+    /// A label for tables.
+    pub fn label(&self) -> String {
+        match self {
+            Method::Pt => "pt".into(),
+            Method::Bdpt => "bdpt".into(),
+            Method::Vpl { sampler, config } => {
+                let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
+                if sampler.is_metropolis() {
+                    l += if config.kernel == KernelArg::Pss { "-pss" } else { "-bidir" };
+                    if config.light_cdf {
+                        l += "-cdf";
+                    }
+                }
+                l
+            }
+        }
+    }
+}
+
+use clap::ValueEnum as _;
+
+/// What one timed render produced.
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// The image.
+    pub image: Image,
+    /// Wall-clock time.
+    pub elapsed: Duration,
+    /// Samples per pixel (pt, bdpt) or frames (VPL methods).
+    pub passes: u32,
+    /// Metropolis acceptance rate, when the method has one.
+    pub acceptance: Option<f64>,
+}
+
+/// Renders `scene` with `method` under `budget`.
+pub fn run(
+    scene: &Scene,
+    accel: &Accel,
+    method: &Method,
+    budget: Budget,
+    seed: u64,
+    frame_settings: &FrameSettings,
+) -> Run {
+    let hidden = ProgressBar::hidden();
+    let offline = OfflineSettings { budget, seed, ..OfflineSettings::preview() };
+    match method {
+        Method::Pt => {
+            let o = offline::render_pt(scene, accel, &offline, &hidden);
+            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
+        }
+        Method::Bdpt => {
+            let opts = BdptOptions { max_depth: offline.max_depth, only: None, path_edges: None };
+            let o = offline::render_bdpt(scene, accel, &offline, &opts, &hidden);
+            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
+        }
+        Method::Vpl { sampler, config } => {
+            let mut s = sampler.build_with(config);
+            let acc = Accumulation { budget, seed, aovs: false };
+            let (o, st) = frame::render_progressive(scene, accel, s.as_mut(), frame_settings, acc, &hidden);
+            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: st.sampler.acceptance_rate() }
+        }
+    }
+}
+
+/// The cached path-traced reference of `name` at the scene camera's resolution.
+pub fn reference(scene: &Scene, accel: &Accel, name: &str, spp: u32, dir: &Path) -> Result<Image, output::SaveError> {
+    let c = &scene.camera;
+    let path = dir.join(format!("{name}-{}x{}-pt{spp}.exr", c.width, c.height));
+    if let Ok(img) = output::read_exr(&path)
+        && (img.width, img.height) == (c.width, c.height)
+    {
+        return Ok(img);
+    }
+    std::fs::create_dir_all(dir).map_err(|e| output::SaveError { path: dir.to_path_buf(), message: e.to_string() })?;
+    let settings = OfflineSettings { budget: Budget::Samples(spp), seed: 0x5eed, ..OfflineSettings::preview() };
+    let img = offline::render_pt(scene, accel, &settings, &ProgressBar::hidden()).film.image();
+    output::write_exr(&path, &img, Default::default())?;
+    Ok(img)
+}
+
+/// Default reference cache directory.
+pub fn reference_dir() -> PathBuf {
+    PathBuf::from("target").join("reference")
+}
+
+/// One row of a convergence report.
+#[derive(Clone, Debug)]
+pub struct ConvergeRow {
+    /// Scene name.
+    pub scene: String,
+    /// Method label.
+    pub method: String,
+    /// Time budget, seconds.
+    pub budget: f64,
+    /// Time actually spent.
+    pub elapsed: f64,
+    /// Samples per pixel or frames.
+    pub passes: u32,
+    /// relMSE against the reference.
+    pub rel_mse: f64,
+}
+
+/// relMSE of every method at every time budget.
+pub fn converge(
+    scene: &Scene,
+    accel: &Accel,
+    name: &str,
+    methods: &[Method],
+    times: &[f64],
+    reference: &Image,
+    frame_settings: &FrameSettings,
+    progress: &dyn Fn(&str),
+) -> Vec<ConvergeRow> {
+    let mut rows = Vec::new();
+    for m in methods {
+        for &t in times {
+            progress(&format!("{name}: {} for {t} s", m.label()));
+            let r = run(scene, accel, m, Budget::Time(Duration::from_secs_f64(t)), 1, frame_settings);
+            rows.push(ConvergeRow {
+                scene: name.to_string(),
+                method: m.label(),
+                budget: t,
+                elapsed: r.elapsed.as_secs_f64(),
+                passes: r.passes,
+                rel_mse: r.image.errors(reference).rel_mse,
+            });
+        }
+    }
+    rows
+}
+
+/// Markdown table of convergence rows: one line per (scene, method), one column per budget.
+pub fn converge_markdown(rows: &[ConvergeRow], times: &[f64]) -> String {
+    let mut s = String::new();
+    let _ = write!(s, "| scene | method |");
+    for t in times {
+        let _ = write!(s, " {t} s |");
+    }
+    s.push('\n');
+    let _ = write!(s, "|---|---|");
+    for _ in times {
+        s.push_str("--:|");
+    }
+    s.push('\n');
+    let mut keys: Vec<(String, String)> = Vec::new();
+    for r in rows {
+        let k = (r.scene.clone(), r.method.clone());
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    for (scene, method) in keys {
+        let _ = write!(s, "| {scene} | {method} |");
+        for t in times {
+            match rows.iter().find(|r| r.scene == scene && r.method == method && r.budget == *t) {
+                Some(r) => {
+                    let _ = write!(s, " {:.4} ({}) |", r.rel_mse, r.passes);
+                }
+                None => s.push_str(" – |"),
+            }
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// An SVG plot of relMSE against time (log–log), one line per method, for one scene.
+pub fn converge_svg(rows: &[ConvergeRow], scene: &str) -> String {
+    let rows: Vec<&ConvergeRow> = rows.iter().filter(|r| r.scene == scene && r.rel_mse > 0.0).collect();
+    let (w, h, pad) = (640.0, 400.0, 60.0);
+    let lx = |t: f64| t.max(1e-3).log10();
+    let (tmin, tmax) = rows.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(lx(r.elapsed)), b.max(lx(r.elapsed))));
+    let (emin, emax) =
+        rows.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.rel_mse.log10()), b.max(r.rel_mse.log10())));
+    let (tmin, tmax) = (tmin.floor(), tmax.ceil().max(tmin.floor() + 1.0));
+    let (emin, emax) = (emin.floor(), emax.ceil().max(emin.floor() + 1.0));
+    let px = |t: f64| pad + (lx(t) - tmin) / (tmax - tmin) * (w - 2.0 * pad);
+    let py = |e: f64| h - pad - (e.log10() - emin) / (emax - emin) * (h - 2.0 * pad);
+    let colors = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#17becf"];
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"20\" text-anchor=\"middle\">{scene}: relMSE vs render time (log–log)</text>\n",
+        w / 2.0
+    );
+    let _ =
+        writeln!(s, "<line x1=\"{pad}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>", h - pad, w - pad, h - pad);
+    let _ = writeln!(s, "<line x1=\"{pad}\" y1=\"{pad}\" x2=\"{pad}\" y2=\"{}\" stroke=\"black\"/>", h - pad);
+    for d in tmin as i32..=tmax as i32 {
+        let x = pad + (d as f64 - tmin) / (tmax - tmin) * (w - 2.0 * pad);
+        let _ =
+            writeln!(s, "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">{} s</text>", h - pad + 18.0, 10f64.powi(d));
+    }
+    for d in emin as i32..=emax as i32 {
+        let y = h - pad - (d as f64 - emin) / (emax - emin) * (h - 2.0 * pad);
+        let _ = writeln!(s, "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">1e{d}</text>", pad - 6.0);
+    }
+    let mut methods: Vec<&str> = Vec::new();
+    for r in &rows {
+        if !methods.contains(&r.method.as_str()) {
+            methods.push(&r.method);
+        }
+    }
+    for (i, m) in methods.iter().enumerate() {
+        let c = colors[i % colors.len()];
+        let pts: Vec<String> = rows
+            .iter()
+            .filter(|r| r.method == *m)
+            .map(|r| format!("{:.1},{:.1}", px(r.elapsed), py(r.rel_mse)))
+            .collect();
+        let _ = writeln!(s, "<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>", pts.join(" "));
+        let _ =
+            writeln!(s, "<text x=\"{}\" y=\"{}\" fill=\"{c}\">{m}</text>", w - pad + 4.0 - 60.0, pad + 16.0 * i as f64);
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+/// One row of the VPL-sampler comparison.
+#[derive(Clone, Debug)]
+pub struct SamplerRow {
+    /// Scene name.
+    pub scene: String,
+    /// Sampler label.
+    pub sampler: String,
+    /// VPLs requested.
+    pub m: usize,
+    /// Mean VPL generation time per set, milliseconds.
+    pub time_ms: f64,
+    /// VPLs produced (mean).
+    pub vpls: f64,
+    /// Rejection rate of a Metropolis sampler.
+    pub rejection: Option<f64>,
+    /// Mean relMSE of single-frame images against the reference.
+    pub rel_mse: f64,
+}
+
+/// Generation time, rejection rate and single-frame relMSE for `sampler` with m VPLs, mean
+/// over `frames` independent frames (fresh sampler state each).
+pub fn sampler_row(
+    scene: &Scene,
+    accel: &Accel,
+    name: &str,
+    method: &Method,
+    m: usize,
+    frames: u32,
+    reference: &Image,
+    frame_settings: &FrameSettings,
+) -> SamplerRow {
+    let Method::Vpl { sampler, config } = method else { panic!("sampler rows need a VPL method") };
+    let settings = FrameSettings { vpls: m, ..*frame_settings };
+    let (mut time, mut vpls, mut rel, mut acc, mut prop) = (0.0, 0.0, 0.0, 0u64, 0u64);
+    for f in 0..frames {
+        let mut s = sampler.build_with(config);
+        let t = Instant::now();
+        let fr = frame::render_frame(scene, accel, &scene.camera, s.as_mut(), &settings, 1000 + f as u64);
+        let _ = t;
+        time += fr.stats.vpl_time.as_secs_f64() * 1e3;
+        vpls += fr.vpls.len() as f64;
+        acc += fr.stats.sampler.accepted;
+        prop += fr.stats.sampler.proposed;
+        let img = Image { width: scene.camera.width, height: scene.camera.height, data: fr.image };
+        rel += img.errors(reference).rel_mse;
+    }
+    let n = frames.max(1) as f64;
+    SamplerRow {
+        scene: name.to_string(),
+        sampler: method.label(),
+        m,
+        time_ms: time / n,
+        vpls: vpls / n,
+        rejection: (prop > 0).then(|| 1.0 - acc as f64 / prop as f64),
+        rel_mse: rel / n,
+    }
+}
+
+/// Markdown table of sampler rows.
+pub fn sampler_markdown(rows: &[SamplerRow]) -> String {
+    let mut s = String::from(
+        "| scene | sampler | m | VPL time (ms) | VPLs | rejection | relMSE (1 frame) |\n|---|---|--:|--:|--:|--:|--:|\n",
+    );
+    for r in rows {
+        let rej = r.rejection.map(|x| format!("{:.1} %", 100.0 * x)).unwrap_or_else(|| "–".into());
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1} | {:.0} | {} | {:.4} |",
+            r.scene, r.sampler, r.m, r.time_ms, r.vpls, rej, r.rel_mse
+        );
+    }
+    s
+}

@@ -1,0 +1,304 @@
+//! The flags of `mirage view` and their validation into [`ViewOptions`]. The window and the
+//! headless loop take the same scene, camera and quality flags, so a benchmark measures what
+//! the window shows.
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+
+use super::error::ViewError;
+use super::path::CameraPath;
+use super::present::ToneCurve;
+use super::session::SessionSettings;
+use crate::frame::FrameSettings;
+use crate::options::{CameraArgs, VplSamplerArg, parse_interleave};
+
+/// The samplers `mirage view` starts with by preference: the first one built into this binary
+/// is the default (so MTMH becomes the default as soon as it exists). Edit this line to change it.
+pub const DEFAULT_SAMPLERS: [&str; 2] = ["mtmh", "sir"];
+
+/// Frames of a headless run without `--frames`.
+pub const DEFAULT_HEADLESS_FRAMES: u64 = 100;
+
+/// The default VPL sampler of the viewer (see [`DEFAULT_SAMPLERS`]).
+pub fn default_sampler() -> VplSamplerArg {
+    DEFAULT_SAMPLERS
+        .iter()
+        .find_map(|n| <VplSamplerArg as ValueEnum>::from_str(n, true).ok())
+        .unwrap_or(VplSamplerArg::Sir)
+}
+
+/// The command-line name of a sampler (`sir-cdf`, `mtmh`...).
+pub fn sampler_name(arg: VplSamplerArg) -> String {
+    arg.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_else(|| format!("{arg:?}"))
+}
+
+/// The window's keys, shown after the flags in `mirage view --help`.
+pub const CONTROLS_HELP: &str = "Window controls:
+  W A S D / Q E   move forward, left, back, right / down, up      mouse drag   look
+  wheel           movement speed                                 R            reset the camera
+  1-9, Tab        VPL sampler (sir, sir-cdf, bir, mh, mtmh)      = / -        VPLs ×2 / ÷2
+  I               interleave tile 1, 2, 4, 8, 16                 C            clamp on/off (. , ×10 ÷10)
+  F               discontinuity filter on/off                    K            chain + VPL reuse / fresh chains
+  P, F12          screenshot (EXR + PNG)                         H / F1       HUD / key help;  Esc quit";
+
+/// Flags of `mirage view`.
+#[derive(Args, Clone, Debug)]
+#[command(after_help = CONTROLS_HELP)]
+pub struct ViewArgs {
+    /// Scene file (.gltf, .glb, .obj) or built-in scene name (default: the built-in Cornell box).
+    pub scene: Option<String>,
+    /// Add an area light for geometry-only models (e.g. ../shared/models/sponza.obj): a
+    /// downward-facing panel of radiance LE just above the model's bounds, covering its
+    /// footprint like a sky over an open courtyard (+y is up). Without a camera in the file,
+    /// the camera is placed inside, looking along the longer horizontal axis.
+    #[arg(long, value_name = "LE", num_args = 0..=1, default_missing_value = "1", allow_negative_numbers = true)]
+    pub add_light: Option<f32>,
+    /// VPL sampler at start (keys 1-9 / Tab switch it). Default: mtmh when built in, else sir.
+    #[arg(long, value_enum)]
+    pub vpl_sampler: Option<VplSamplerArg>,
+    /// VPLs per frame (the per-frame budget of the sampler).
+    #[arg(long, default_value_t = 256)]
+    pub vpls: usize,
+    /// Interleaved-sampling tile "NxM"; 1x1 disables interleaving.
+    #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
+    pub interleave: (u32, u32),
+    /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp.
+    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
+    pub clamp: f32,
+    /// Start with the discontinuity buffer off.
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Ray tracing of the gather: 8-wide packets with shadow rays grouped by shared VPL
+    /// (default) or by shared pixel, or single rays.
+    #[arg(long, value_enum, default_value_t = crate::options::RaysArg::SharedEnd)]
+    pub rays: crate::options::RaysArg,
+    /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
+    #[arg(long, default_value_t = 20.0)]
+    pub filter_angle: f32,
+    /// Discontinuity buffer: largest relative depth difference between pixels averaged together.
+    #[arg(long, default_value_t = 0.05)]
+    pub filter_depth: f32,
+    /// Maximum number of scattering events of the sampler's paths.
+    #[arg(long, default_value_t = 128)]
+    pub max_depth: u32,
+    /// Base seed: frame i uses a hash of (seed, i), so headless runs are reproducible.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Render resolution relative to the window (0.5: half the pixels per side, upscaled).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
+    /// Linear tone mapping with this exposure in stops (default: Reinhard's operator).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f32>,
+    /// Run the frame loop without a window (benchmarks, tests, measures); ends with a summary.
+    #[arg(long)]
+    pub headless: bool,
+    /// Frames to render: headless, the run's length (default 100); in a window, close after N.
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Scripted camera: a keyframe file (lines "ex ey ez tx ty tz") or a built-in path:
+    /// orbit, dolly, pan.
+    #[arg(long, value_name = "FILE|orbit|dolly|pan")]
+    pub camera_path: Option<String>,
+    /// Write every displayed frame to DIR as frame-NNNNN.png.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+    /// With --record, also write the linear image of every frame as frame-NNNNN.exr.
+    #[arg(long, requires = "record")]
+    pub record_exr: bool,
+    /// Headless: print the flicker measure (mean relative luminance difference between
+    /// consecutive individual frames).
+    #[arg(long, requires = "headless")]
+    pub flicker: bool,
+    /// Reset the VPL sampler before every frame instead of continuing its chain, and reuse no
+    /// VPLs (K toggles it in the window): the baseline of the flicker measure.
+    #[arg(long)]
+    pub fresh_chains: bool,
+    /// VPL reuse while the camera moves a little: each frame samples ⌈m/K⌉ new VPLs and gathers
+    /// them with the most recent VPLs of the previous frame, m in all, so consecutive frames
+    /// share about (K−1)/K of their VPLs. 1 turns reuse off; a still camera never reuses.
+    #[arg(long, value_name = "K", default_value_t = 4)]
+    pub vpl_reuse: u32,
+    /// Headless, still camera: print the relMSE of the accumulated image against this EXR
+    /// after 1, 2, 4, 8… frames.
+    #[arg(long, value_name = "REF.exr", requires = "headless", conflicts_with = "camera_path")]
+    pub reference: Option<PathBuf>,
+    /// Start with the HUD hidden (H toggles it).
+    #[arg(long)]
+    pub no_hud: bool,
+    /// Directory for screenshots (key P).
+    #[arg(long, value_name = "DIR", default_value = ".")]
+    pub screenshot_dir: PathBuf,
+    /// Write a screenshot (this PNG and an EXR beside it) when the loop ends.
+    #[arg(long, value_name = "FILE.png")]
+    pub screenshot_on_exit: Option<PathBuf>,
+    /// Camera and window size (--width/--height: the window, or the headless image).
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+/// Validated viewer settings.
+#[derive(Clone, Debug)]
+pub struct ViewOptions {
+    /// Sampler, pipeline, seed and chain mode.
+    pub session: SessionSettings,
+    /// Render resolution / window resolution.
+    pub scale: f32,
+    /// Display tone curve.
+    pub curve: ToneCurve,
+    /// No window.
+    pub headless: bool,
+    /// Frames to render (headless: always set).
+    pub frames: Option<u64>,
+    /// Scripted camera.
+    pub camera_path: Option<CameraPath>,
+    /// Directory of recorded frames.
+    pub record: Option<PathBuf>,
+    /// Record EXRs too.
+    pub record_exr: bool,
+    /// Measure flicker.
+    pub flicker: bool,
+    /// Reference image for the convergence report.
+    pub reference: Option<PathBuf>,
+    /// HUD visible at start.
+    pub hud: bool,
+    /// Screenshot directory.
+    pub screenshot_dir: PathBuf,
+    /// Screenshot written when the loop ends.
+    pub screenshot_on_exit: Option<PathBuf>,
+}
+
+impl ViewArgs {
+    /// Checks the flags and builds the options (the camera path file is read here).
+    pub fn options(&self) -> Result<ViewOptions, ViewError> {
+        let bad = |m: String| Err(ViewError::Options(m));
+        if self.vpls == 0 || self.vpls > 10_000_000 {
+            return bad(format!("--vpls {} is outside 1…10000000", self.vpls));
+        }
+        if !(self.clamp >= 0.0 && self.clamp.is_finite()) {
+            return bad(format!("--clamp {} must be finite and ≥ 0", self.clamp));
+        }
+        let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
+        let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
+        if !angle_ok || !depth_ok {
+            return bad("--filter-angle must be in (0, 180] and --filter-depth > 0".into());
+        }
+        if self.max_depth > 100_000 {
+            return bad(format!("--max-depth {} is absurdly large (max 100000)", self.max_depth));
+        }
+        if !(self.scale >= 0.05 && self.scale <= 4.0) {
+            return bad(format!("--scale {} is outside 0.05…4", self.scale));
+        }
+        if let Some(e) = self.exposure
+            && !e.is_finite()
+        {
+            return bad("--exposure must be finite".into());
+        }
+        if !(1..=64).contains(&self.vpl_reuse) {
+            return bad(format!("--vpl-reuse {} is outside 1…64", self.vpl_reuse));
+        }
+        if self.threads == Some(0) {
+            return bad("--threads must be at least 1".into());
+        }
+        if let Some(n) = self.frames
+            && !(1..=1_000_000_000).contains(&n)
+        {
+            return bad(format!("--frames {n} is outside 1…1000000000"));
+        }
+        if let Some(le) = self.add_light
+            && !(le > 0.0 && le.is_finite())
+        {
+            return bad(format!("--add-light {le} must be a positive radiance"));
+        }
+        for (flag, v) in [("--width", self.camera.width), ("--height", self.camera.height)] {
+            if let Some(v) = v
+                && !(1..=16384).contains(&v)
+            {
+                return bad(format!("{flag} {v} is outside 1…16384"));
+            }
+        }
+        let camera_path = self.camera_path.as_deref().map(CameraPath::from_arg).transpose()?;
+        Ok(ViewOptions {
+            session: SessionSettings {
+                sampler: self.vpl_sampler.unwrap_or_else(default_sampler),
+                max_depth: self.max_depth,
+                frame: FrameSettings {
+                    vpls: self.vpls,
+                    interleave: self.interleave,
+                    clamp: self.clamp,
+                    filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
+                    tracing: self.rays.into(),
+                    ..FrameSettings::interactive()
+                },
+                seed: self.seed,
+                fresh_chains: self.fresh_chains,
+                reuse_frames: self.vpl_reuse,
+            },
+            scale: self.scale,
+            curve: self.exposure.map_or(ToneCurve::Reinhard, ToneCurve::Exposure),
+            headless: self.headless,
+            frames: if self.headless { Some(self.frames.unwrap_or(DEFAULT_HEADLESS_FRAMES)) } else { self.frames },
+            camera_path,
+            record: self.record.clone(),
+            record_exr: self.record_exr,
+            flicker: self.flicker,
+            reference: self.reference.clone(),
+            hud: !self.no_hud,
+            screenshot_dir: self.screenshot_dir.clone(),
+            screenshot_on_exit: self.screenshot_on_exit.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        view: ViewArgs,
+    }
+
+    fn parse(args: &[&str]) -> ViewArgs {
+        Cli::try_parse_from(std::iter::once("view").chain(args.iter().copied())).unwrap().view
+    }
+
+    #[test]
+    fn defaults_are_the_interactive_settings_and_the_preferred_sampler() {
+        let o = parse(&[]).options().unwrap();
+        assert_eq!(o.session.frame.vpls, 256);
+        assert_eq!(o.session.frame.interleave, (8, 8));
+        assert_eq!(sampler_name(o.session.sampler), if sampler_exists("mtmh") { "mtmh" } else { "sir" });
+        assert_eq!(o.frames, None);
+        assert_eq!(parse(&["--headless"]).options().unwrap().frames, Some(DEFAULT_HEADLESS_FRAMES));
+        assert_eq!(parse(&["--add-light"]).add_light, Some(1.0));
+        assert_eq!(parse(&["--add-light", "5"]).add_light, Some(5.0));
+    }
+
+    fn sampler_exists(name: &str) -> bool {
+        VplSamplerArg::value_variants().iter().any(|v| sampler_name(*v) == name)
+    }
+
+    #[test]
+    fn absurd_values_are_rejected_naming_the_flag() {
+        for (args, flag) in [
+            (&["--vpls", "0"][..], "--vpls"),
+            (&["--scale", "0"][..], "--scale"),
+            (&["--clamp", "-1"][..], "--clamp"),
+            (&["--frames", "0"][..], "--frames"),
+            (&["--width", "0"][..], "--width"),
+            (&["--add-light", "-2"][..], "--add-light"),
+            (&["--vpl-reuse", "0"][..], "--vpl-reuse"),
+        ] {
+            let e = parse(args).options().unwrap_err().to_string();
+            assert!(e.contains(flag), "{args:?}: {e}");
+        }
+        assert!(Cli::try_parse_from(["view", "--flicker"]).is_err(), "--flicker needs --headless");
+    }
+}

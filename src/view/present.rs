@@ -1,0 +1,175 @@
+//! From the accumulated linear image to window pixels: tone mapping into 0x00RRGGBB words
+//! (softbuffer's format), nearest-neighbour upscaling from the render resolution (`--scale`) to
+//! the window, and screenshots (linear EXR + the PNG exactly as displayed).
+//!
+//! The tone curves are those of [`crate::film::tonemap`] (Reinhard et al. 2002 global operator
+//! with key 0.18, or a linear exposure), made cheap enough for every frame: the log-average
+//! luminance is taken over a strided subset of at most 64k pixels, and the sRGB encoding is a
+//! table lookup.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::color::{linear_to_srgb, luminance};
+use crate::film::Image;
+use crate::output::{self, Aovs, SaveError};
+
+/// How the window maps radiance to display values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ToneCurve {
+    /// Reinhard's global operator, key 0.18, white point = the brightest pixel.
+    Reinhard,
+    /// Multiply by 2^stops and clamp.
+    Exposure(f32),
+}
+
+/// Entries of the linear → sRGB table on [0, 1].
+const LUT_SIZE: usize = 1 << 14;
+
+fn srgb_lut() -> &'static [u8] {
+    static LUT: OnceLock<Vec<u8>> = OnceLock::new();
+    LUT.get_or_init(|| {
+        (0..LUT_SIZE).map(|i| (linear_to_srgb(i as f32 / (LUT_SIZE - 1) as f32) * 255.0 + 0.5) as u8).collect()
+    })
+}
+
+#[inline]
+fn encode(lut: &[u8], v: f32) -> u32 {
+    // NaN and negative values map to 0 through the saturating cast.
+    let i = (v * (LUT_SIZE - 1) as f32 + 0.5) as usize;
+    lut[i.min(LUT_SIZE - 1)] as u32
+}
+
+#[inline]
+fn sanitize(p: Vec3) -> Vec3 {
+    if p.is_finite() { p.max(Vec3::ZERO) } else { Vec3::ZERO }
+}
+
+/// Reinhard's image statistics: (scale = key 0.18 / log-average luminance, white = brightest
+/// scaled luminance).
+fn reinhard_stats(image: &[Vec3]) -> (f32, f32) {
+    let stride = (image.len() / 65_536).max(1);
+    let (sum, n) = image
+        .par_iter()
+        .step_by(stride)
+        .map(|&p| ((1e-6 + luminance(sanitize(p)) as f64).ln(), 1usize))
+        .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let log_avg = (sum / n.max(1) as f64).exp() as f32;
+    let scale = 0.18 / log_avg.max(1e-12);
+    let max_lum = image.par_iter().map(|&p| luminance(sanitize(p))).reduce(|| 0.0, f32::max);
+    (scale, (max_lum * scale).max(1e-6))
+}
+
+/// Tone-maps `image` into `out` (same length), one 0x00RRGGBB word per pixel.
+pub fn tonemap(image: &[Vec3], curve: ToneCurve, out: &mut [u32]) {
+    assert_eq!(image.len(), out.len(), "tone-map buffers differ in size");
+    let lut = srgb_lut();
+    let pack = move |c: Vec3| (encode(lut, c.x) << 16) | (encode(lut, c.y) << 8) | encode(lut, c.z);
+    match curve {
+        ToneCurve::Exposure(stops) => {
+            let s = 2f32.powf(stops);
+            out.par_iter_mut().zip(image.par_iter()).for_each(|(o, &p)| *o = pack(sanitize(p) * s));
+        }
+        ToneCurve::Reinhard => {
+            let (scale, white) = reinhard_stats(image);
+            let inv_white2 = 1.0 / (white * white);
+            out.par_iter_mut().zip(image.par_iter()).for_each(|(o, &p)| {
+                // L_d / L with L_s = scale·L: scale·(1 + L_s / L_white²) / (1 + L_s).
+                let p = sanitize(p);
+                let ls = luminance(p) * scale;
+                *o = if ls <= 0.0 { 0 } else { pack(p * (scale * (1.0 + ls * inv_white2) / (1.0 + ls))) };
+            });
+        }
+    }
+}
+
+/// Copies a `sw`×`sh` image into a `dw`×`dh` one, nearest neighbour (upscaling or downscaling).
+pub fn resample_nearest(src: &[u32], sw: u32, sh: u32, dst: &mut [u32], dw: u32, dh: u32) {
+    assert_eq!(src.len(), (sw * sh) as usize);
+    assert_eq!(dst.len(), (dw * dh) as usize);
+    if (sw, sh) == (dw, dh) {
+        dst.copy_from_slice(src);
+        return;
+    }
+    let xs: Vec<usize> = (0..dw).map(|x| ((x as u64 * sw as u64 / dw as u64) as usize).min(sw as usize - 1)).collect();
+    dst.par_chunks_mut(dw as usize).enumerate().for_each(|(y, row)| {
+        let sy = ((y as u64 * sh as u64 / dh as u64) as usize).min(sh as usize - 1);
+        let line = &src[sy * sw as usize..(sy + 1) * sw as usize];
+        for (o, &sx) in row.iter_mut().zip(&xs) {
+            *o = line[sx];
+        }
+    });
+}
+
+/// Writes the displayed pixels (0x00RRGGBB) as an 8-bit PNG.
+pub fn write_png_rgb(path: &Path, pixels: &[u32], width: u32, height: u32) -> Result<(), SaveError> {
+    let bytes: Vec<u8> = pixels.iter().flat_map(|&p| [(p >> 16) as u8, (p >> 8) as u8, p as u8]).collect();
+    image::save_buffer(path, &bytes, width, height, image::ColorType::Rgb8)
+        .map_err(|e| SaveError { path: path.to_path_buf(), message: format!("cannot write PNG: {e}") })
+}
+
+/// Writes a screenshot: the linear image as EXR at `png` with extension `.exr`, and the
+/// displayed pixels as the PNG.
+pub fn screenshot(png: &Path, linear: &[Vec3], displayed: &[u32], width: u32, height: u32) -> Result<(), SaveError> {
+    if let Some(dir) = png.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| SaveError { path: dir.to_path_buf(), message: format!("cannot create directory: {e}") })?;
+    }
+    let img = Image { width, height, data: linear.to_vec() };
+    output::write_exr(&png.with_extension("exr"), &img, Aovs::default())?;
+    write_png_rgb(png, displayed, width, height)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::{Tonemap, to_srgb8};
+
+    #[test]
+    fn window_tone_mapping_matches_the_film_operator() {
+        let data: Vec<Vec3> = (0..4096)
+            .map(|i| {
+                let t = i as f32 / 4096.0;
+                Vec3::new(t * 3.0, (t * 7.0).fract(), 0.01 + t * t * 20.0)
+            })
+            .collect();
+        let img = Image { width: 64, height: 64, data: data.clone() };
+        for (curve, tm) in
+            [(ToneCurve::Reinhard, Tonemap::Reinhard), (ToneCurve::Exposure(-1.5), Tonemap::Exposure(-1.5))]
+        {
+            let mut out = vec![0u32; data.len()];
+            tonemap(&data, curve, &mut out);
+            let film = to_srgb8(&img, tm);
+            for (i, &p) in out.iter().enumerate() {
+                let ours = [(p >> 16) as u8, (p >> 8) as u8, p as u8];
+                for c in 0..3 {
+                    let d = (ours[c] as i32 - film[3 * i + c] as i32).abs();
+                    assert!(d <= 1, "{curve:?} pixel {i} channel {c}: {ours:?} vs film");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn non_finite_and_negative_pixels_display_black() {
+        let data = [Vec3::NAN, Vec3::splat(-1.0), Vec3::splat(f32::INFINITY), Vec3::ONE];
+        let mut out = [1u32; 4];
+        tonemap(&data, ToneCurve::Reinhard, &mut out);
+        assert_eq!(&out[..3], &[0, 0, 0]);
+        assert_ne!(out[3], 0);
+    }
+
+    #[test]
+    fn nearest_resampling_repeats_pixels() {
+        let src = [1u32, 2, 3, 4];
+        let mut dst = [0u32; 16];
+        resample_nearest(&src, 2, 2, &mut dst, 4, 4);
+        assert_eq!(dst, [1, 1, 2, 2, 1, 1, 2, 2, 3, 3, 4, 4, 3, 3, 4, 4]);
+        let mut small = [0u32; 1];
+        resample_nearest(&src, 2, 2, &mut small, 1, 1);
+        assert_eq!(small, [1]);
+    }
+}

@@ -1,0 +1,328 @@
+//! The per-frame core of the viewer, shared by the window and the headless loop: one VPL
+//! sampler whose state persists across frames, [`frame::render_frame`] for each frame, and the
+//! running mean of frames while the camera stands still.
+//!
+//! Temporal chain reuse (papers/002 §8, DESIGN §3.6): when the camera changes, the sampler is
+//! told whether the change was a small move (a stateful MIR sampler continues its chain) or a
+//! jump (it starts afresh). A jump is a translation of more than [`JUMP_DISTANCE`] of the scene
+//! diagonal, a turn of the view direction by more than [`JUMP_ANGLE_DEG`], a change of field of
+//! view or resolution, or an explicit teleport (R reset). In "fresh chains" mode the sampler is
+//! reset before every frame instead, which is the baseline of the flicker measure.
+//! Stateless samplers (sir, sir-cdf, bir) ignore both calls.
+//!
+//! After a small move the session also reuses VPLs ([`super::reuse`]): the frame asks the
+//! sampler for ⌈m/K⌉ new VPLs and gathers them pooled with the most recent VPLs of the previous
+//! frame, m in all (K = [`SessionSettings::reuse_frames`]; 1, or fresh chains, turns it off).
+
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::reuse;
+use crate::accel::Accel;
+use crate::frame::{self, FrameSettings, FrameStats};
+use crate::options::VplSamplerArg;
+use crate::sampling::rng::hash_words;
+use crate::scene::{Camera, Scene};
+use crate::vpl::VplSampler;
+
+/// A per-frame translation beyond this fraction of the scene diagonal is a jump.
+pub const JUMP_DISTANCE: f32 = 0.1;
+/// A per-frame turn of the view direction beyond this angle (degrees) is a jump.
+pub const JUMP_ANGLE_DEG: f32 = 15.0;
+/// Stream tag of frame seeds.
+const TAG_VIEW_FRAME: u64 = 0x5649_4557;
+
+/// How the camera changed since the previous frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    /// Not at all: frames keep accumulating.
+    Still,
+    /// A little: accumulation restarts, a Metropolis chain continues.
+    Small,
+    /// A jump: accumulation restarts, a Metropolis chain starts afresh.
+    Jump,
+}
+
+/// Classifies the change from `prev` to `next` in a scene of diagonal `diagonal`.
+pub fn classify_motion(prev: &Camera, next: &Camera, diagonal: f32) -> Motion {
+    if prev == next {
+        return Motion::Still;
+    }
+    let moved = prev.position.distance(next.position);
+    let turned = prev.forward.dot(next.forward).clamp(-1.0, 1.0).acos().to_degrees();
+    let reframed = (prev.width, prev.height) != (next.width, next.height)
+        || (prev.fov_y_radians - next.fov_y_radians).abs().to_degrees() > JUMP_ANGLE_DEG;
+    if reframed || !(moved <= JUMP_DISTANCE * diagonal) || !(turned <= JUMP_ANGLE_DEG) {
+        Motion::Jump
+    } else {
+        Motion::Small
+    }
+}
+
+/// The seed of frame `index` of a run seeded with `seed`.
+pub fn frame_seed(seed: u64, index: u64) -> u64 {
+    hash_words(&[seed, TAG_VIEW_FRAME, index])
+}
+
+/// What the viewer needs to start rendering.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionSettings {
+    /// The VPL sampler.
+    pub sampler: VplSamplerArg,
+    /// Maximum path depth of the sampler.
+    pub max_depth: u32,
+    /// The frame pipeline.
+    pub frame: FrameSettings,
+    /// Base seed; frame i uses [`frame_seed`]`(seed, i)`.
+    pub seed: u64,
+    /// Reset the sampler before every frame (no chain reuse, no VPL reuse).
+    pub fresh_chains: bool,
+    /// VPL reuse factor K after small moves: ⌈m/K⌉ new VPLs per frame (1: no reuse).
+    pub reuse_frames: u32,
+}
+
+/// One rendered frame as the loop sees it.
+#[derive(Debug)]
+pub struct FrameOutcome {
+    /// The individual frame (linear radiance), before accumulation.
+    pub image: Vec<Vec3>,
+    /// Stage times and counts.
+    pub stats: FrameStats,
+    /// Time spent adding the frame to the running mean.
+    pub accumulate_time: Duration,
+    /// How the camera changed before this frame.
+    pub motion: Motion,
+    /// VPLs gathered (new and reused).
+    pub vpls_gathered: usize,
+    /// Of which reused from the previous frame.
+    pub vpls_reused: usize,
+    /// Non-finite pixels replaced by black (should stay 0).
+    pub non_finite: usize,
+}
+
+/// Scene, BVH, sampler state and the accumulated image.
+pub struct Session {
+    scene: Scene,
+    accel: Accel,
+    sampler: Box<dyn VplSampler>,
+    settings: SessionSettings,
+    camera: Camera,
+    pending: Motion,
+    history: reuse::VplHistory,
+    frame_index: u64,
+    mean: Vec<Vec3>,
+    accumulated: u32,
+}
+
+impl Session {
+    /// A session rendering `scene` through `camera`.
+    pub fn new(scene: Scene, accel: Accel, camera: Camera, settings: SessionSettings) -> Self {
+        let sampler = settings.sampler.build(settings.max_depth);
+        Session {
+            scene,
+            accel,
+            sampler,
+            settings,
+            mean: vec![Vec3::ZERO; camera.pixel_count()],
+            camera,
+            pending: Motion::Jump,
+            history: reuse::VplHistory::default(),
+            frame_index: 0,
+            accumulated: 0,
+        }
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The camera of the next frame.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// The current settings.
+    pub fn settings(&self) -> &SessionSettings {
+        &self.settings
+    }
+
+    /// Name of the active sampler.
+    pub fn sampler_name(&self) -> &'static str {
+        self.sampler.name()
+    }
+
+    /// Frames in the running mean.
+    pub fn accumulated(&self) -> u32 {
+        self.accumulated
+    }
+
+    /// Frames rendered since the start.
+    pub fn frames_rendered(&self) -> u64 {
+        self.frame_index
+    }
+
+    /// The running mean of the frames since the camera last changed (black before the first).
+    pub fn mean(&self) -> &[Vec3] {
+        &self.mean
+    }
+
+    /// Moves the camera for the next frame; a change restarts accumulation and tells the
+    /// sampler whether its chain may continue. Returns how the camera changed.
+    pub fn set_camera(&mut self, camera: Camera) -> Motion {
+        let motion = classify_motion(&self.camera, &camera, self.scene.bounds.diagonal());
+        self.apply_motion(camera, motion);
+        motion
+    }
+
+    /// Moves the camera and treats the change as a jump whatever its size (reset, cut).
+    pub fn teleport(&mut self, camera: Camera) {
+        self.apply_motion(camera, Motion::Jump);
+    }
+
+    fn apply_motion(&mut self, camera: Camera, motion: Motion) {
+        if motion == Motion::Still {
+            return;
+        }
+        self.sampler.camera_moved(motion == Motion::Jump);
+        if camera.pixel_count() != self.mean.len() {
+            self.mean = vec![Vec3::ZERO; camera.pixel_count()];
+        }
+        self.camera = camera;
+        self.accumulated = 0;
+        self.pending = if self.pending == Motion::Jump { Motion::Jump } else { motion };
+    }
+
+    /// Replaces the sampler (a fresh one: chains do not carry over between strategies).
+    pub fn set_sampler(&mut self, arg: VplSamplerArg) {
+        self.settings.sampler = arg;
+        self.sampler = arg.build(self.settings.max_depth);
+        self.history.clear();
+        self.restart();
+    }
+
+    /// Changes the frame pipeline settings; the image restarts, the chain continues.
+    pub fn set_frame_settings(&mut self, frame: FrameSettings) {
+        if frame != self.settings.frame {
+            self.settings.frame = frame;
+            self.restart();
+        }
+    }
+
+    /// Switches between chain reuse and fresh chains every frame.
+    pub fn set_fresh_chains(&mut self, fresh: bool) {
+        self.settings.fresh_chains = fresh;
+        self.restart();
+    }
+
+    /// Restarts accumulation without moving the camera.
+    pub fn restart(&mut self) {
+        self.accumulated = 0;
+    }
+
+    /// Renders the next frame (VPLs → G-buffer → gather → filter) and adds it to the mean.
+    /// The same stages as [`frame::render_frame`], with the VPL reuse step between the sampler
+    /// and the gather.
+    pub fn step(&mut self) -> FrameOutcome {
+        let motion = std::mem::replace(&mut self.pending, Motion::Still);
+        let fresh = self.settings.fresh_chains;
+        if fresh {
+            self.sampler.reset();
+        }
+        if fresh || motion == Motion::Jump {
+            self.history.clear();
+        }
+        let reuse = !fresh && motion == Motion::Small && self.settings.reuse_frames > 1;
+        let m = self.settings.frame.vpls;
+        let seed = frame_seed(self.settings.seed, self.frame_index);
+        let mut stats = FrameStats::default();
+        let t = Instant::now();
+        let m_new = if reuse { reuse::new_vpls(m, self.settings.reuse_frames) } else { m };
+        let (new, sampler_stats) = self.sampler.sample(&self.scene, &self.accel, &self.camera, m_new, seed);
+        let new_len = new.len();
+        let keep_history = !fresh && self.settings.reuse_frames > 1;
+        let (n, m_tile) = self.settings.frame.interleave;
+        let vpls = if reuse {
+            self.history.pool(new, m, (n * m_tile) as usize, self.frame_index)
+        } else {
+            if keep_history {
+                self.history.restart(&new, self.frame_index);
+            }
+            new
+        };
+        stats.vpl_time = t.elapsed();
+        stats.sampler = sampler_stats;
+        let (vpls_gathered, vpls_reused) = (vpls.len(), vpls.len() - new_len);
+        // Jitter (anti-aliasing) only frames that join a running mean: the first frame after a
+        // change samples pixel centres, so a moving camera does not shimmer at edges.
+        let mut settings = self.settings.frame;
+        settings.jitter &= self.accumulated > 0;
+        let frame = frame::gather_frame(&self.scene, &self.accel, &self.camera, vpls, &settings, seed, stats);
+        self.frame_index += 1;
+
+        let t = Instant::now();
+        self.accumulated += 1;
+        let w = 1.0 / self.accumulated as f32;
+        let non_finite = self
+            .mean
+            .par_chunks_mut(4096)
+            .zip(frame.image.par_chunks(4096))
+            .map(|(mean, img)| {
+                let mut bad = 0;
+                for (m, &x) in mean.iter_mut().zip(img) {
+                    let x = if x.is_finite() {
+                        x
+                    } else {
+                        bad += 1;
+                        Vec3::ZERO
+                    };
+                    *m += (x - *m) * w;
+                }
+                bad
+            })
+            .sum();
+        let accumulate_time = t.elapsed();
+        FrameOutcome {
+            image: frame.image,
+            stats: frame.stats,
+            accumulate_time,
+            motion,
+            vpls_gathered,
+            vpls_reused,
+            non_finite,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam(eye: Vec3, target: Vec3) -> Camera {
+        Camera::look_at(eye, target, Vec3::Y, 0.8, 16, 16)
+    }
+
+    #[test]
+    fn small_moves_and_jumps_follow_the_thresholds() {
+        let a = cam(Vec3::ZERO, Vec3::NEG_Z);
+        assert_eq!(classify_motion(&a, &a.clone(), 10.0), Motion::Still);
+        assert_eq!(classify_motion(&a, &cam(Vec3::X * 0.5, Vec3::X * 0.5 + Vec3::NEG_Z), 10.0), Motion::Small);
+        assert_eq!(classify_motion(&a, &cam(Vec3::X * 1.5, Vec3::X * 1.5 + Vec3::NEG_Z), 10.0), Motion::Jump);
+        let turned = |deg: f32| {
+            let r = deg.to_radians();
+            cam(Vec3::ZERO, Vec3::new(r.sin(), 0.0, -r.cos()))
+        };
+        assert_eq!(classify_motion(&a, &turned(10.0), 10.0), Motion::Small);
+        assert_eq!(classify_motion(&a, &turned(20.0), 10.0), Motion::Jump);
+        assert_eq!(classify_motion(&a, &a.clone().with_resolution(32, 16), 10.0), Motion::Jump);
+    }
+
+    #[test]
+    fn frame_seeds_differ_between_frames_and_runs() {
+        assert_ne!(frame_seed(0, 0), frame_seed(0, 1));
+        assert_ne!(frame_seed(0, 1), frame_seed(1, 0));
+        assert_eq!(frame_seed(7, 3), frame_seed(7, 3));
+    }
+}
