@@ -39,49 +39,48 @@ pub fn filter(
     s: &DiscontinuitySettings,
 ) -> Vec<Vec3> {
     let cos_max = s.max_normal_angle_deg.to_radians().cos();
-    let (x_lo, x_hi) = (s.n as i64 / 2, (s.n as i64 - 1) / 2);
-    let (y_lo, y_hi) = (s.m as i64 / 2, (s.m as i64 - 1) / 2);
-    // Irradiance-like quantity: gathered / albedo (per channel; zero albedo channels pass through).
-    let ratio = |i: usize| -> Option<Vec3> {
-        let a = albedo[i];
-        if a.min_element() <= 0.0 { None } else { Some(gathered[i] / a) }
-    };
-    (0..height as i64)
-        .into_par_iter()
-        .flat_map_iter(|y| {
-            (0..width as i64).map(move |x| {
-                let i = (y * width as i64 + x) as usize;
-                let (n0, d0) = (normal[i], depth[i]);
-                let Some(r0) = ratio(i) else { return gathered[i] };
-                if n0 == Vec3::ZERO || d0 <= 0.0 {
-                    return gathered[i];
-                }
-                let mut sum = r0;
-                let mut count = 1.0f32;
-                for dy in -y_lo..=y_hi {
-                    let yy = y + dy;
-                    if yy < 0 || yy >= height as i64 {
-                        continue;
-                    }
-                    for dx in -x_lo..=x_hi {
-                        let xx = x + dx;
-                        if (dx == 0 && dy == 0) || xx < 0 || xx >= width as i64 {
-                            continue;
-                        }
-                        let j = (yy * width as i64 + xx) as usize;
-                        if normal[j].dot(n0) < cos_max || (depth[j] - d0).abs() > s.max_relative_depth * d0 {
-                            continue;
-                        }
-                        if let Some(r) = ratio(j) {
-                            sum += r;
-                            count += 1.0;
-                        }
+    let (w, h) = (width as usize, height as usize);
+    let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
+    let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
+    // Irradiance-like quantity gathered / albedo, once per pixel (None: a zero albedo channel,
+    // the pixel neither gives nor takes).
+    let ratio: Vec<Option<Vec3>> = gathered
+        .par_iter()
+        .zip(albedo.par_iter())
+        .map(|(g, a)| if a.min_element() <= 0.0 { None } else { Some(*g / *a) })
+        .collect();
+    let mut out = vec![Vec3::ZERO; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let (y0, y1) = (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
+        for (x, o) in row.iter_mut().enumerate() {
+            let i = y * w + x;
+            let (n0, d0) = (normal[i], depth[i]);
+            *o = gathered[i];
+            let Some(r0) = ratio[i] else { continue };
+            if n0 == Vec3::ZERO || d0 <= 0.0 {
+                continue;
+            }
+            let tol = s.max_relative_depth * d0;
+            let (x0, x1) = (x.saturating_sub(x_lo), (x + x_hi).min(w - 1));
+            // The window includes the pixel itself, which always passes its own test.
+            let mut sum = Vec3::ZERO;
+            let mut count = 0.0f32;
+            for yy in y0..=y1 {
+                let r = yy * w + x0..=yy * w + x1;
+                for ((n, d), q) in normal[r.clone()].iter().zip(&depth[r.clone()]).zip(&ratio[r]) {
+                    if let Some(q) = q
+                        && n.dot(n0) >= cos_max
+                        && (d - d0).abs() <= tol
+                    {
+                        sum += *q;
+                        count += 1.0;
                     }
                 }
-                sum / count * albedo[i]
-            })
-        })
-        .collect()
+            }
+            *o = if count > 0.0 { sum / count } else { r0 } * albedo[i];
+        }
+    });
+    out
 }
 
 #[cfg(test)]

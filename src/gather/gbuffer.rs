@@ -66,27 +66,52 @@ pub fn trace(
         let depth = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
         (r, e, depth)
     };
-    let bands: Vec<(Vec<Px>, RayStats)> = (0..h.div_ceil(bh))
-        .into_par_iter()
-        .map(|band| {
-            let y0 = band * bh;
-            let rows = bh.min(h - y0);
+    let n = (w * h) as usize;
+    let mut g = GBuffer {
+        width: w,
+        height: h,
+        // Filled in parallel (a 512² frame's receivers are ~40 MB: a serial fill and its page
+        // faults cost as much as tracing).
+        receivers: (0..n).into_par_iter().map(|_| None).collect(),
+        emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+        albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+        normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+        depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
+    };
+    let band_len = (bh * w) as usize;
+    let band_stats: Vec<RayStats> = g
+        .receivers
+        .par_chunks_mut(band_len)
+        .zip(g.emitted.par_chunks_mut(band_len))
+        .zip(g.albedo.par_chunks_mut(band_len))
+        .zip(g.normal.par_chunks_mut(band_len))
+        .zip(g.depth.par_chunks_mut(band_len))
+        .enumerate()
+        .map(|(band, ((((receivers, emitted), albedo), normal), depth))| {
+            let y0 = band as u32 * bh;
             let mut st = RayStats::default();
-            let mut out: Vec<Px> = vec![(None, Vec3::ZERO, 0.0); (rows * w) as usize];
+            let mut store = |x: u32, y: u32, (r, e, d): Px| {
+                let i = ((y - y0) * w + x) as usize;
+                albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
+                normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
+                depth[i] = d;
+                receivers[i] = r;
+                emitted[i] = e;
+            };
             let mut block = Vec::with_capacity(F8::LANES);
             for x0 in (0..w).step_by(bw as usize) {
                 for i in 0..(bw * bh) {
                     let (x, y) = (x0 + i % bw, y0 + i / bw);
                     if x < w && y < h {
                         let (s, ray) = setup(x, y);
-                        block.push((x, y - y0, s, ray));
+                        block.push((x, y, s, ray));
                     }
                 }
                 st.closest += block.len() as u64;
                 if tracing == Tracing::Single {
                     for (x, y, s, ray) in block.drain(..) {
                         let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
-                        out[(y * w + x) as usize] = finish(s, ray, first, &mut st);
+                        store(x, y, finish(s, ray, first, &mut st));
                     }
                 } else {
                     let packet = RayPacket::<F8>::from_fn(|i| {
@@ -94,33 +119,15 @@ pub fn trace(
                     });
                     let hits = accel.intersect_packet(&packet);
                     for (i, (x, y, s, ray)) in block.drain(..).enumerate() {
-                        out[(y * w + x) as usize] = finish(s, ray, hits.lane(i), &mut st);
+                        store(x, y, finish(s, ray, hits.lane(i), &mut st));
                     }
                 }
             }
-            (out, st)
+            st
         })
         .collect();
-    let rows: Vec<(Vec<Px>, RayStats)> = bands;
-    let n = (w * h) as usize;
-    let mut g = GBuffer {
-        width: w,
-        height: h,
-        receivers: Vec::with_capacity(n),
-        emitted: Vec::with_capacity(n),
-        albedo: Vec::with_capacity(n),
-        normal: Vec::with_capacity(n),
-        depth: Vec::with_capacity(n),
-    };
-    for (band, st) in rows {
+    for st in band_stats {
         *stats += st;
-        for (r, e, d) in band {
-            g.albedo.push(r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO));
-            g.normal.push(r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO));
-            g.depth.push(d);
-            g.receivers.push(r);
-            g.emitted.push(e);
-        }
     }
     g
 }
