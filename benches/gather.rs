@@ -1,6 +1,7 @@
 //! One gather (G-buffer + interleaved shadow rays + shading, no filter) at 512×512 with 256
 //! and 1024 VPLs on cornell and the 1M-triangle sphere field, for each ray grouping: single
-//! rays, 8-wide packets sharing a VPL, 8-wide packets sharing a pixel. Throughput is shadow
+//! rays; 8-wide primary packets with single shadow rays; primary packets with shadow packets
+//! sharing a VPL, or sharing a pixel. Throughput is shadow
 //! rays. `cargo bench --bench gather`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -23,6 +24,7 @@ fn bench_gather(c: &mut Criterion) {
             let (vpls, _) = Sir::new(64).sample(&scene, &accel, &scene.camera, m, 7);
             for (label, tracing) in [
                 ("single", Tracing::Single),
+                ("primary-packets", Tracing::PrimaryPackets),
                 ("shared-end", Tracing::SharedEnd),
                 ("shared-origin", Tracing::SharedOrigin),
             ] {

@@ -253,7 +253,7 @@ fn bench_packets<F: Lanes>(
 
 fn bench_traverse(c: &mut Criterion) {
     let mut group = c.benchmark_group("traverse");
-    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(2));
+    group.sample_size(10).warm_up_time(Duration::from_millis(300)).measurement_time(Duration::from_secs(1));
     for (name, desc) in scenes() {
         let t0 = std::time::Instant::now();
         let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();

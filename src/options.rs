@@ -47,8 +47,10 @@ pub enum KernelArg {
 pub enum RaysArg {
     /// One ray at a time.
     Single,
-    /// 8-wide packets; shadow packets share a VPL (pixels of a row gathering the same subset).
+    /// 8-wide packets for primary rays, single shadow rays (fastest measured).
     #[default]
+    Primary,
+    /// 8-wide packets; shadow packets share a VPL (pixels of a row gathering the same subset).
     SharedEnd,
     /// 8-wide packets; shadow packets share a pixel (its VPL subset).
     SharedOrigin,
@@ -58,6 +60,7 @@ impl From<RaysArg> for crate::gather::Tracing {
     fn from(r: RaysArg) -> Self {
         match r {
             RaysArg::Single => Self::Single,
+            RaysArg::Primary => Self::PrimaryPackets,
             RaysArg::SharedEnd => Self::SharedEnd,
             RaysArg::SharedOrigin => Self::SharedOrigin,
         }
@@ -262,9 +265,10 @@ pub struct RenderArgs {
     /// Do not apply the discontinuity buffer after the gather (ir, mir).
     #[arg(long)]
     pub no_filter: bool,
-    /// Ray tracing of the gather (ir, mir): 8-wide packets with shadow rays grouped by shared
-    /// VPL (default) or by shared pixel, or single rays. Same image; see benches/gather.rs.
-    #[arg(long, value_enum, default_value_t = RaysArg::SharedEnd)]
+    /// Ray tracing of the gather (ir, mir): 8-wide packets for primary rays and single shadow
+    /// rays (default), shadow packets grouped by shared VPL or by shared pixel, or single rays
+    /// everywhere. Same image; see benches/gather.rs.
+    #[arg(long, value_enum, default_value_t = RaysArg::Primary)]
     pub rays: RaysArg,
     /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
     #[arg(long, default_value_t = 20.0)]

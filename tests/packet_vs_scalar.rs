@@ -336,7 +336,7 @@ fn gather_image_is_the_same_for_every_ray_grouping() {
             gather_frame(&case.scene, &case.accel, &case.scene.camera, vpls.clone(), &fs, 5, Default::default())
         };
         let single = frame(Tracing::Single);
-        for tracing in [Tracing::SharedEnd, Tracing::SharedOrigin] {
+        for tracing in [Tracing::PrimaryPackets, Tracing::SharedEnd, Tracing::SharedOrigin] {
             let packed = frame(tracing);
             assert_eq!(single.stats.rays.shadow, packed.stats.rays.shadow, "{} {tracing:?}", case.name);
             assert_eq!(single.stats.rays.closest, packed.stats.rays.closest, "{} {tracing:?}", case.name);

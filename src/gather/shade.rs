@@ -123,7 +123,7 @@ pub fn gather(
                 pending: Vec::with_capacity(F8::LANES),
             };
             match tracing {
-                Tracing::Single => {
+                Tracing::Single | Tracing::PrimaryPackets => {
                     for x in 0..w {
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
                             if let Some(p) = candidate(x, y, i as usize) {

@@ -69,9 +69,9 @@ pub struct ViewArgs {
     /// Start with the discontinuity buffer off.
     #[arg(long)]
     pub no_filter: bool,
-    /// Ray tracing of the gather: 8-wide packets with shadow rays grouped by shared VPL
-    /// (default) or by shared pixel, or single rays.
-    #[arg(long, value_enum, default_value_t = crate::options::RaysArg::SharedEnd)]
+    /// Ray tracing of the gather: 8-wide packets for primary rays and single shadow rays
+    /// (default), shadow packets grouped by shared VPL or by shared pixel, or single rays.
+    #[arg(long, value_enum, default_value_t = crate::options::RaysArg::Primary)]
     pub rays: crate::options::RaysArg,
     /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
     #[arg(long, default_value_t = 20.0)]

@@ -400,6 +400,8 @@ impl<K: MutationKernel> Mir<K> {
         let nl = scene.lights.list.len();
         report.power_by_light = vec![0.0; nl];
         let min_hits = self.settings.min_probe_hits;
+        // P' with the chains' own target bound (see `mirpath::TARGET_CLAMP`).
+        let g_target = crate::vpl::mirpath::target_g_bound(scene);
         let scaled: Vec<(Option<Vpl>, RayStats)> = locations
             .par_iter()
             .enumerate()
@@ -411,7 +413,7 @@ impl<K: MutationKernel> Mir<K> {
                 let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
                 for (receivers, count) in &probe_sets {
                     for r in receivers {
-                        let y = luminance(contribution(scene, accel, &one, 0, r, f32::INFINITY, &mut st)) as f64;
+                        let y = luminance(contribution(scene, accel, &one, 0, r, g_target, &mut st)) as f64;
                         sum += y;
                         sum2 += y * y;
                         hits += (y > 0.0) as usize;
