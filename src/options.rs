@@ -67,6 +67,65 @@ impl From<RaysArg> for crate::gather::Tracing {
     }
 }
 
+/// Flags of the VPL frame pipeline shared by `render --mode ir|mir` and `view`.
+#[derive(Args, Clone, Debug)]
+pub struct GatherArgs {
+    /// VPLs per frame.
+    #[arg(long, default_value_t = 256)]
+    pub vpls: usize,
+    /// Interleaved-sampling tile "NxM"; 1x1 disables interleaving.
+    #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
+    pub interleave: (u32, u32),
+    /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
+    /// (unbiased, noisier near corners).
+    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
+    pub clamp: f32,
+    /// Do not apply the discontinuity buffer after the gather (in the viewer: start with it off).
+    #[arg(long)]
+    pub no_filter: bool,
+    /// Ray tracing of the gather: 8-wide packets for primary rays and single shadow rays
+    /// (default), shadow packets grouped by shared VPL or by shared pixel, or single rays
+    /// everywhere. Same image; see benches/gather.rs.
+    #[arg(long, value_enum, default_value_t = RaysArg::Primary)]
+    pub rays: RaysArg,
+    /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
+    #[arg(long, default_value_t = 20.0)]
+    pub filter_angle: f32,
+    /// Discontinuity buffer: largest relative depth difference between pixels averaged together.
+    #[arg(long, default_value_t = 0.05)]
+    pub filter_depth: f32,
+}
+
+impl GatherArgs {
+    /// Rejects absurd values with a one-line message naming the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.vpls == 0 || self.vpls > 10_000_000 {
+            return Err(format!("--vpls {} is outside 1…10000000", self.vpls));
+        }
+        if !(self.clamp >= 0.0 && self.clamp.is_finite()) {
+            return Err(format!("--clamp {} must be finite and ≥ 0", self.clamp));
+        }
+        let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
+        let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
+        if !angle_ok || !depth_ok {
+            return Err("--filter-angle must be in (0, 180] and --filter-depth > 0".into());
+        }
+        Ok(())
+    }
+
+    /// The frame settings these flags give (interactive defaults for the rest).
+    pub fn frame_settings(&self) -> crate::frame::FrameSettings {
+        crate::frame::FrameSettings {
+            vpls: self.vpls,
+            interleave: self.interleave,
+            clamp: self.clamp,
+            filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
+            tracing: self.rays.into(),
+            ..crate::frame::FrameSettings::interactive()
+        }
+    }
+}
+
 /// Settings of the samplers beyond their kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SamplerConfig {
@@ -252,30 +311,9 @@ pub struct RenderArgs {
     /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
     #[arg(long)]
     pub light_cdf: bool,
-    /// VPLs per frame (ir, mir).
-    #[arg(long, default_value_t = 256)]
-    pub vpls: usize,
-    /// Interleaved-sampling tile "NxM" (ir, mir); 1x1 disables interleaving.
-    #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
-    pub interleave: (u32, u32),
-    /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
-    /// (unbiased, noisier near corners).
-    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
-    pub clamp: f32,
-    /// Do not apply the discontinuity buffer after the gather (ir, mir).
-    #[arg(long)]
-    pub no_filter: bool,
-    /// Ray tracing of the gather (ir, mir): 8-wide packets for primary rays and single shadow
-    /// rays (default), shadow packets grouped by shared VPL or by shared pixel, or single rays
-    /// everywhere. Same image; see benches/gather.rs.
-    #[arg(long, value_enum, default_value_t = RaysArg::Primary)]
-    pub rays: RaysArg,
-    /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
-    #[arg(long, default_value_t = 20.0)]
-    pub filter_angle: f32,
-    /// Discontinuity buffer: largest relative depth difference between pixels averaged together.
-    #[arg(long, default_value_t = 0.05)]
-    pub filter_depth: f32,
+    /// The VPL frame pipeline's flags (ir, mir).
+    #[command(flatten)]
+    pub gather: GatherArgs,
     /// Also write albedo, normal and depth layers into the EXR.
     #[arg(long)]
     pub aov: bool,
@@ -369,17 +407,7 @@ impl RenderArgs {
                 return Err(OptionsError(format!("{flag} {v} is outside 1…16384")));
             }
         }
-        if self.vpls == 0 || self.vpls > 10_000_000 {
-            return Err(OptionsError(format!("--vpls {} is outside 1…10000000", self.vpls)));
-        }
-        if !(self.clamp >= 0.0 && self.clamp.is_finite()) {
-            return Err(OptionsError(format!("--clamp {} must be finite and ≥ 0", self.clamp)));
-        }
-        let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
-        let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
-        if !angle_ok || !depth_ok {
-            return Err(OptionsError("--filter-angle must be in (0, 180] and --filter-depth > 0".into()));
-        }
+        self.gather.validate().map_err(OptionsError)?;
         let vpl_sampler = match (self.mode, self.vpl_sampler) {
             (Mode::Mir, None) => VplSamplerArg::Mtmh,
             (_, None) => VplSamplerArg::Sir,
@@ -429,16 +457,7 @@ impl RenderArgs {
                 candidates: self.candidates,
                 light_cdf: self.light_cdf,
             },
-            frame: crate::frame::FrameSettings {
-                vpls: self.vpls,
-                interleave: self.interleave,
-                clamp: self.clamp,
-                filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
-                max_specular: 8,
-                jitter: true,
-                min_distance: 0.0,
-                tracing: self.rays.into(),
-            },
+            frame: crate::frame::FrameSettings { max_specular: 8, ..self.gather.frame_settings() },
         })
     }
 }

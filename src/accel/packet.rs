@@ -24,7 +24,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::single::{CULL_SLACK, CanonicalRay, ROBUST, closest, occluded};
-use super::triangle::{ShearPacket, intersect_packet};
+use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
 use super::{Accel, Hit};
 use crate::simd::{F8, Lanes, RayPacket, Vec3x};
@@ -538,6 +538,48 @@ fn descend_frustum<F: Lanes>(
     Some((hits[n - 1].0, hits[n - 1].2))
 }
 
+/// Closest hits found so far, lane by lane.
+struct Closest<F: Lanes> {
+    t: F,
+    id: F,
+    b1: F,
+    b2: F,
+}
+
+impl<F: Lanes> Closest<F> {
+    /// Tests the `count` triangles of a leaf block against the lanes of `mask`, keeping nearer
+    /// hits (equal t: the smaller scene index wins, as for single rays); returns the lanes whose
+    /// hit changed.
+    #[inline(always)]
+    fn leaf(&mut self, p: &CanonicalPacket<F>, block: &TriBlock, count: usize, mask: F) -> u32 {
+        let mut changed = 0u32;
+        for k in 0..count {
+            let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
+            let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), self.t, mask);
+            if h.mask.bitmask() == 0 {
+                continue;
+            }
+            let mut better = h.mask.and(h.t.lt(self.t));
+            let ties = h.mask.and(h.t.eq(self.t)).bitmask();
+            if ties != 0 {
+                let tie_wins = (0..F::LANES)
+                    .filter(|&i| ties >> i & 1 != 0 && block.id[k] < self.id.lane_bits(i))
+                    .fold(0u32, |m, i| m | 1 << i);
+                better = better.or(F::mask_from_bits(tie_wins));
+            }
+            let bits = better.bitmask();
+            if bits != 0 {
+                self.t = better.select(h.t, self.t);
+                self.id = better.select(F::splat_bits(block.id[k]), self.id);
+                self.b1 = better.select(h.b1, self.b1);
+                self.b2 = better.select(h.b2, self.b2);
+                changed |= bits;
+            }
+        }
+        changed
+    }
+}
+
 /// Closest hits of a coherent packet: frustum traversal, exact lane tests at leaves.
 #[inline(always)]
 fn closest_frustum<F: Lanes>(
@@ -546,11 +588,9 @@ fn closest_frustum<F: Lanes>(
     frustum: &impl Cull,
     stack: &mut impl Stack3,
 ) -> (u32, F, F, F, F) {
-    let mut best_t = p.t_max;
-    let mut best_id = F::splat_bits(EMPTY);
-    let (mut best_b1, mut best_b2) = (F::splat(0.0), F::splat(0.0));
+    let mut best = Closest { t: p.t_max, id: F::splat_bits(EMPTY), b1: F::splat(0.0), b2: F::splat(0.0) };
     let mut found = 0u32;
-    let mut t_cull = CanonicalPacket::<F>::cull(best_t);
+    let mut t_cull = CanonicalPacket::<F>::cull(best.t);
     let mut cull_max = max_lane(t_cull, p.active);
     let mut cur = (p.active != 0).then_some((bvh.root, p.active));
     loop {
@@ -561,43 +601,17 @@ fn closest_frustum<F: Lanes>(
             }
             let (b, count) = leaf_parts(r);
             let block = &bvh.blocks[b];
-            let lane_mask = F::mask_from_bits(lanes);
-            let mut changed = false;
-            for k in 0..count {
-                let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
-                let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), best_t, lane_mask);
-                if h.mask.bitmask() == 0 {
-                    continue;
-                }
-                let id = F::splat_bits(block.id[k]);
-                let mut better = h.mask.and(h.t.lt(best_t));
-                let ties = h.mask.and(h.t.eq(best_t)).bitmask();
-                if ties != 0 {
-                    // Equal t: the smaller scene index wins (as for single rays).
-                    let tie_wins = (0..F::LANES)
-                        .filter(|&i| ties >> i & 1 != 0 && block.id[k] < best_id.lane_bits(i))
-                        .fold(0u32, |m, i| m | 1 << i);
-                    better = better.or(F::mask_from_bits(tie_wins));
-                }
-                let bits = better.bitmask();
-                if bits != 0 {
-                    best_t = better.select(h.t, best_t);
-                    best_id = better.select(id, best_id);
-                    best_b1 = better.select(h.b1, best_b1);
-                    best_b2 = better.select(h.b2, best_b2);
-                    found |= bits;
-                    changed = true;
-                }
-            }
-            if changed {
-                t_cull = CanonicalPacket::<F>::cull(best_t);
+            let bits = best.leaf(p, block, count, F::mask_from_bits(lanes));
+            found |= bits;
+            if bits != 0 {
+                t_cull = CanonicalPacket::<F>::cull(best.t);
                 cull_max = max_lane(t_cull, p.active);
             }
             cur = None;
         }
         loop {
             match stack.pop() {
-                None => return (found, best_t, best_id, best_b1, best_b2),
+                None => return (found, best.t, best.id, best.b1, best.b2),
                 Some((r, t, lanes)) if t <= cull_max => {
                     cur = Some((r, lanes));
                     break;
@@ -702,15 +716,13 @@ fn closest_packet<F: Lanes, const W: usize>(
     stack: &mut impl PacketStack<F>,
 ) -> (u32, F, F, F, F) {
     let inf = F::splat(f32::INFINITY);
-    let mut best_t = p.t_max;
-    let mut best_id = F::splat_bits(EMPTY);
-    let (mut best_b1, mut best_b2) = (F::splat(0.0), F::splat(0.0));
+    let mut best = Closest { t: p.t_max, id: F::splat_bits(EMPTY), b1: F::splat(0.0), b2: F::splat(0.0) };
     let mut found = F::splat(0.0).lt(F::splat(0.0));
     if p.active != 0 {
         stack.push(bvh.root, F::mask_from_bits(p.active).select(F::splat(0.0), inf));
     }
     while let Some((r, t_entry)) = stack.pop() {
-        let t_cull = best_t * F::splat(ROBUST) + F::splat(CULL_SLACK);
+        let t_cull = best.t * F::splat(ROBUST) + F::splat(CULL_SLACK);
         let lanes = t_entry.le(t_cull);
         if lanes.bitmask() == 0 {
             continue;
@@ -721,30 +733,9 @@ fn closest_packet<F: Lanes, const W: usize>(
         }
         let (b, count) = leaf_parts(r);
         let block = &bvh.blocks[b];
-        for k in 0..count {
-            let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
-            let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), best_t, lanes);
-            if h.mask.bitmask() == 0 {
-                continue;
-            }
-            let id = F::splat_bits(block.id[k]);
-            let mut better = h.mask.and(h.t.lt(best_t));
-            let ties = h.mask.and(h.t.eq(best_t)).bitmask();
-            if ties != 0 {
-                // Equal t: the smaller scene index wins (as for single rays).
-                let tie_wins = (0..F::LANES)
-                    .filter(|&i| ties >> i & 1 != 0 && block.id[k] < best_id.lane_bits(i))
-                    .fold(0u32, |m, i| m | 1 << i);
-                better = better.or(F::mask_from_bits(tie_wins));
-            }
-            best_t = better.select(h.t, best_t);
-            best_id = better.select(id, best_id);
-            best_b1 = better.select(h.b1, best_b1);
-            best_b2 = better.select(h.b2, best_b2);
-            found = found.or(better);
-        }
+        found = found.or(F::mask_from_bits(best.leaf(p, block, count, lanes)));
     }
-    (found.bitmask(), best_t, best_id, best_b1, best_b2)
+    (found.bitmask(), best.t, best.id, best.b1, best.b2)
 }
 
 #[inline(always)]

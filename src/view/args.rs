@@ -10,8 +10,7 @@ use super::error::ViewError;
 use super::path::CameraPath;
 use super::present::ToneCurve;
 use super::session::SessionSettings;
-use crate::frame::FrameSettings;
-use crate::options::{CameraArgs, VplSamplerArg, parse_interleave};
+use crate::options::{CameraArgs, GatherArgs, VplSamplerArg};
 
 /// The samplers `mirage view` starts with by preference: the first one built into this binary
 /// is the default (so MTMH becomes the default as soon as it exists). Edit this line to change it.
@@ -57,28 +56,9 @@ pub struct ViewArgs {
     /// VPL sampler at start (keys 1-9 / Tab switch it). Default: mtmh when built in, else sir.
     #[arg(long, value_enum)]
     pub vpl_sampler: Option<VplSamplerArg>,
-    /// VPLs per frame (the per-frame budget of the sampler).
-    #[arg(long, default_value_t = 256)]
-    pub vpls: usize,
-    /// Interleaved-sampling tile "NxM"; 1x1 disables interleaving.
-    #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
-    pub interleave: (u32, u32),
-    /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp.
-    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
-    pub clamp: f32,
-    /// Start with the discontinuity buffer off.
-    #[arg(long)]
-    pub no_filter: bool,
-    /// Ray tracing of the gather: 8-wide packets for primary rays and single shadow rays
-    /// (default), shadow packets grouped by shared VPL or by shared pixel, or single rays.
-    #[arg(long, value_enum, default_value_t = crate::options::RaysArg::Primary)]
-    pub rays: crate::options::RaysArg,
-    /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
-    #[arg(long, default_value_t = 20.0)]
-    pub filter_angle: f32,
-    /// Discontinuity buffer: largest relative depth difference between pixels averaged together.
-    #[arg(long, default_value_t = 0.05)]
-    pub filter_depth: f32,
+    /// The VPL frame pipeline's flags.
+    #[command(flatten)]
+    pub gather: GatherArgs,
     /// Maximum number of scattering events of the sampler's paths.
     #[arg(long, default_value_t = 128)]
     pub max_depth: u32,
@@ -176,16 +156,8 @@ impl ViewArgs {
     /// Checks the flags and builds the options (the camera path file is read here).
     pub fn options(&self) -> Result<ViewOptions, ViewError> {
         let bad = |m: String| Err(ViewError::Options(m));
-        if self.vpls == 0 || self.vpls > 10_000_000 {
-            return bad(format!("--vpls {} is outside 1…10000000", self.vpls));
-        }
-        if !(self.clamp >= 0.0 && self.clamp.is_finite()) {
-            return bad(format!("--clamp {} must be finite and ≥ 0", self.clamp));
-        }
-        let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
-        let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
-        if !angle_ok || !depth_ok {
-            return bad("--filter-angle must be in (0, 180] and --filter-depth > 0".into());
+        if let Err(e) = self.gather.validate() {
+            return bad(e);
         }
         if self.max_depth > 100_000 {
             return bad(format!("--max-depth {} is absurdly large (max 100000)", self.max_depth));
@@ -226,14 +198,7 @@ impl ViewArgs {
             session: SessionSettings {
                 sampler: self.vpl_sampler.unwrap_or_else(default_sampler),
                 max_depth: self.max_depth,
-                frame: FrameSettings {
-                    vpls: self.vpls,
-                    interleave: self.interleave,
-                    clamp: self.clamp,
-                    filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
-                    tracing: self.rays.into(),
-                    ..FrameSettings::interactive()
-                },
+                frame: self.gather.frame_settings(),
                 seed: self.seed,
                 fresh_chains: self.fresh_chains,
                 reuse_frames: self.vpl_reuse,
