@@ -41,12 +41,17 @@ pub struct FrameSettings {
 }
 
 impl FrameSettings {
-    /// Interactive defaults: 256 VPLs, 8×8 interleaving, clamp 1000, filter 20° / 5 %.
+    /// Interactive defaults: 256 VPLs, 8×8 interleaving, clamp 300, filter 20° / 5 %.
+    ///
+    /// Clamp 300 (× 1/diagonal²): at 1000 MTMH renders of the Cornell box showed bright 8×8
+    /// patches along edges — MIR puts VPLs close to visible surfaces, and an edge pixel whose
+    /// window the discontinuity buffer cannot average keeps its ×64 interleave-scaled, clamped
+    /// contribution; 300 removes them for 1.6 % of the gathered energy (1000: 0.8 %, 100: 2.4 %).
     pub fn interactive() -> Self {
         FrameSettings {
             vpls: 256,
             interleave: (8, 8),
-            clamp: 1000.0,
+            clamp: 300.0,
             filter: Some((20.0, 0.05)),
             max_specular: 4,
             jitter: true,

@@ -78,7 +78,7 @@ pub struct GatherArgs {
     pub interleave: (u32, u32),
     /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
     /// (unbiased, noisier near corners).
-    #[arg(long, default_value_t = 1000.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 300.0, allow_hyphen_values = true)]
     pub clamp: f32,
     /// Do not apply the discontinuity buffer after the gather (in the viewer: start with it off).
     #[arg(long)]

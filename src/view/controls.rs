@@ -118,10 +118,10 @@ pub struct ControlState {
 }
 
 impl ControlState {
-    /// Remembers the starting settings (clamp 1000 and filter 20° / 5 % when they start off).
+    /// Remembers the starting settings (clamp 300 and filter 20° / 5 % when they start off).
     pub fn new(frame: &crate::frame::FrameSettings) -> Self {
         ControlState {
-            clamp_bound: if frame.clamp > 0.0 { frame.clamp } else { 1000.0 },
+            clamp_bound: if frame.clamp > 0.0 { frame.clamp } else { 300.0 },
             filter: frame.filter.unwrap_or((20.0, 0.05)),
         }
     }
