@@ -146,7 +146,22 @@ pub fn gather_frame(
     vpls: VplSet,
     settings: &FrameSettings,
     seed: u64,
+    stats: FrameStats,
+) -> Frame {
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, GBuffer::default())
+}
+
+/// [`gather_frame`] writing the G-buffer into the allocation of `spare` (the previous frame's
+/// [`Frame::gbuffer`]) when its size matches: what a frame loop uses.
+pub fn gather_frame_reusing(
+    scene: &Scene,
+    accel: &Accel,
+    camera: &Camera,
+    vpls: VplSet,
+    settings: &FrameSettings,
+    seed: u64,
     mut stats: FrameStats,
+    spare: GBuffer,
 ) -> Frame {
     let t = Instant::now();
     let gbuf = gather::gbuffer::trace(
@@ -157,6 +172,7 @@ pub fn gather_frame(
         settings.jitter,
         settings.max_specular,
         settings.tracing,
+        spare,
         &mut stats.rays,
     );
     stats.primary_time = t.elapsed();

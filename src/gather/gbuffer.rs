@@ -39,7 +39,9 @@ pub struct GBuffer {
 /// Traces one ray per pixel through a position jittered by `(seed, pass)` (pixel centres when
 /// `jitter` is false), following up to `max_specular` specular bounces. With packet `tracing`
 /// the camera rays of 4×2 pixel blocks are traced as one 8-wide packet (bounces stay single
-/// rays); the result is the same G-buffer.
+/// rays); the result is the same G-buffer. `reuse` (the previous frame's G-buffer, or
+/// `GBuffer::default()`) lends its allocation when the size matches: a 512² frame's receivers are
+/// ~40 MB, and allocating them afresh each frame costs page faults on every frame.
 pub fn trace(
     scene: &Scene,
     accel: &Accel,
@@ -48,6 +50,7 @@ pub fn trace(
     jitter: bool,
     max_specular: u32,
     tracing: Tracing,
+    reuse: GBuffer,
     stats: &mut RayStats,
 ) -> GBuffer {
     let (w, h) = (camera.width, camera.height);
@@ -67,16 +70,20 @@ pub fn trace(
         (r, e, depth)
     };
     let n = (w * h) as usize;
-    let mut g = GBuffer {
-        width: w,
-        height: h,
-        // Filled in parallel (a 512² frame's receivers are ~40 MB: a serial fill and its page
-        // faults cost as much as tracing).
-        receivers: (0..n).into_par_iter().map(|_| None).collect(),
-        emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-        albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-        normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-        depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
+    // Every pixel of every array is written below, so a reused buffer needs no clearing.
+    let mut g = if reuse.width == w && reuse.height == h && reuse.receivers.len() == n {
+        reuse
+    } else {
+        GBuffer {
+            width: w,
+            height: h,
+            // Filled in parallel (a serial fill and its page faults cost as much as tracing).
+            receivers: (0..n).into_par_iter().map(|_| None).collect(),
+            emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+            albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+            normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+            depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
+        }
     };
     let band_len = (bh * w) as usize;
     let band_stats: Vec<RayStats> = g

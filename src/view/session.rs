@@ -111,6 +111,8 @@ pub struct Session {
     camera: Camera,
     pending: Motion,
     history: reuse::VplHistory,
+    /// The previous frame's G-buffer, whose allocation the next frame reuses.
+    spare_gbuffer: crate::gather::GBuffer,
     frame_index: u64,
     mean: Vec<Vec3>,
     accumulated: u32,
@@ -129,6 +131,7 @@ impl Session {
             camera,
             pending: Motion::Jump,
             history: reuse::VplHistory::default(),
+            spare_gbuffer: Default::default(),
             frame_index: 0,
             accumulated: 0,
         }
@@ -259,7 +262,9 @@ impl Session {
         // change samples pixel centres, so a moving camera does not shimmer at edges.
         let mut settings = self.settings.frame;
         settings.jitter &= self.accumulated > 0;
-        let frame = frame::gather_frame(&self.scene, &self.accel, &self.camera, vpls, &settings, seed, stats);
+        let spare = std::mem::take(&mut self.spare_gbuffer);
+        let frame =
+            frame::gather_frame_reusing(&self.scene, &self.accel, &self.camera, vpls, &settings, seed, stats, spare);
         self.frame_index += 1;
 
         let t = Instant::now();
@@ -284,6 +289,7 @@ impl Session {
             })
             .sum();
         let accumulate_time = t.elapsed();
+        self.spare_gbuffer = frame.gbuffer;
         FrameOutcome {
             image: frame.image,
             stats: frame.stats,
