@@ -127,8 +127,10 @@ pub fn gather(
                     for x in 0..w {
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
                             if let Some(p) = candidate(x, y, i as usize) {
-                                acc.pending.push(p);
-                                acc.flush(accel, &mut st);
+                                st.shadow += 1;
+                                if !accel.occluded(p.3, p.4, SHADOW_T_MAX) {
+                                    acc.add(p);
+                                }
                             }
                         }
                     }
