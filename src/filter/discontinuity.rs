@@ -8,6 +8,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::simd::{F8, Lanes};
+
 /// Thresholds of the discontinuity buffer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DiscontinuitySettings {
@@ -42,46 +44,69 @@ pub fn filter(
     let (w, h) = (width as usize, height as usize);
     let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
     let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
-    // Irradiance-like quantity gathered / albedo, once per pixel (None: a zero albedo channel,
-    // the pixel neither gives nor takes).
-    let ratio: Vec<Option<Vec3>> = gathered
-        .par_iter()
-        .zip(albedo.par_iter())
-        .map(|(g, a)| if a.min_element() <= 0.0 { None } else { Some(*g / *a) })
-        .collect();
+    // Per row, 7 planes of `pw` floats: normal x, y, z, depth, and the irradiance-like ratio
+    // gathered / albedo (x, y, z). A pixel that neither gives nor takes (a zero albedo channel)
+    // has depth NaN, which fails every depth test. Rows are padded with LANES such pixels so
+    // that 8-wide loads stay inside the row.
+    let pw = w + F8::LANES;
+    let mut planes = vec![0.0f32; PLANES * pw * h];
+    planes.par_chunks_mut(PLANES * pw).enumerate().for_each(|(y, row)| {
+        row[3 * pw..4 * pw].fill(f32::NAN);
+        for x in 0..w {
+            let i = y * w + x;
+            let a = albedo[i];
+            if a.min_element() <= 0.0 {
+                continue;
+            }
+            let (n, r) = (normal[i], gathered[i] / a);
+            for (k, v) in [n.x, n.y, n.z, depth[i], r.x, r.y, r.z].into_iter().enumerate() {
+                row[k * pw + x] = v;
+            }
+        }
+    });
     let mut out = vec![Vec3::ZERO; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         let (y0, y1) = (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
         for (x, o) in row.iter_mut().enumerate() {
             let i = y * w + x;
             let (n0, d0) = (normal[i], depth[i]);
             *o = gathered[i];
-            let Some(r0) = ratio[i] else { continue };
-            if n0 == Vec3::ZERO || d0 <= 0.0 {
+            if albedo[i].min_element() <= 0.0 || n0 == Vec3::ZERO || d0 <= 0.0 {
                 continue;
             }
-            let tol = s.max_relative_depth * d0;
+            let (nx, ny, nz) = (F8::splat(n0.x), F8::splat(n0.y), F8::splat(n0.z));
+            let (d0v, tol, cos) = (F8::splat(d0), F8::splat(s.max_relative_depth * d0), F8::splat(cos_max));
             let (x0, x1) = (x.saturating_sub(x_lo), (x + x_hi).min(w - 1));
             // The window includes the pixel itself, which always passes its own test.
-            let mut sum = Vec3::ZERO;
-            let mut count = 0.0f32;
+            let (mut sx, mut sy, mut sz, mut count) = (zero, zero, zero, zero);
             for yy in y0..=y1 {
-                let r = yy * w + x0..=yy * w + x1;
-                for ((n, d), q) in normal[r.clone()].iter().zip(&depth[r.clone()]).zip(&ratio[r]) {
-                    if let Some(q) = q
-                        && n.dot(n0) >= cos_max
-                        && (d - d0).abs() <= tol
-                    {
-                        sum += *q;
-                        count += 1.0;
-                    }
+                let base = yy * PLANES * pw;
+                for xs in (x0..=x1).step_by(F8::LANES) {
+                    let lanes = F8::first_lanes((x1 + 1 - xs).min(F8::LANES));
+                    let at = |k: usize| F8::load(&planes[base + k * pw + xs..]);
+                    let dot = at(0) * nx + at(1) * ny + at(2) * nz;
+                    let keep = lanes.and(dot.ge(cos)).and((at(3) - d0v).abs().le(tol));
+                    sx += keep.select(at(4), zero);
+                    sy += keep.select(at(5), zero);
+                    sz += keep.select(at(6), zero);
+                    count += keep.select(one, zero);
                 }
             }
-            *o = if count > 0.0 { sum / count } else { r0 } * albedo[i];
+            let count = count.sum_lanes(F8::ALL);
+            let mean = if count > 0.0 {
+                Vec3::new(sx.sum_lanes(F8::ALL), sy.sum_lanes(F8::ALL), sz.sum_lanes(F8::ALL)) / count
+            } else {
+                gathered[i] / albedo[i]
+            };
+            *o = mean * albedo[i];
         }
     });
     out
 }
+
+/// Planes per row of the filter's SoA copy of the G-buffer (normal xyz, depth, ratio xyz).
+const PLANES: usize = 7;
 
 #[cfg(test)]
 mod tests {
