@@ -130,12 +130,26 @@ pub fn render_frame(
     settings: &FrameSettings,
     seed: u64,
 ) -> Frame {
+    render_frame_reusing(scene, accel, camera, sampler, settings, seed, GBuffer::default())
+}
+
+/// [`render_frame`] with the G-buffer written into the allocation of `spare` (see
+/// [`gather_frame_reusing`]).
+pub fn render_frame_reusing(
+    scene: &Scene,
+    accel: &Accel,
+    camera: &Camera,
+    sampler: &mut dyn VplSampler,
+    settings: &FrameSettings,
+    seed: u64,
+    spare: GBuffer,
+) -> Frame {
     let mut stats = FrameStats::default();
     let t = Instant::now();
     let (vpls, sstats) = sampler.sample(scene, accel, camera, settings.vpls, seed);
     stats.vpl_time = t.elapsed();
     stats.sampler = sstats;
-    gather_frame(scene, accel, camera, vpls, settings, seed, stats)
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, spare)
 }
 
 /// The frame pipeline after VPL sampling (G-buffer, gather, filter).
@@ -237,15 +251,10 @@ pub fn render_progressive(
         Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
     }
     let mut frames = 0u32;
+    let mut spare = GBuffer::default();
     loop {
-        let frame = render_frame(
-            scene,
-            accel,
-            cam,
-            sampler,
-            settings,
-            seed.wrapping_mul(0x9e37_79b9).wrapping_add(frames as u64),
-        );
+        let frame_seed = seed.wrapping_mul(0x9e37_79b9).wrapping_add(frames as u64);
+        let frame = render_frame_reusing(scene, accel, cam, sampler, settings, frame_seed, spare);
         let mut tile = FilmTile::new(0, 0, cam.width, cam.height, aovs);
         for y in 0..cam.height {
             for x in 0..cam.width {
@@ -259,6 +268,7 @@ pub fn render_progressive(
         }
         film.merge_tile(&tile);
         total += &frame.stats;
+        spare = frame.gbuffer;
         total.rays.samples += (cam.width * cam.height) as u64;
         frames += 1;
         let done = match budget {
