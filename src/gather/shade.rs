@@ -9,12 +9,17 @@ use super::Tracing;
 use super::gbuffer::GBuffer;
 use super::interleave::Interleave;
 use crate::accel::Accel;
+use crate::accel::ray_offset;
+use crate::bsdf::BsdfKind;
 use crate::color::luminance;
 use crate::scene::Scene;
 use crate::simd::{F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
 use crate::vpl::VplSet;
-use crate::vpl::transfer::{SHADOW_T_MAX, shadow_segment, unshadowed};
+#[cfg(doc)]
+use crate::vpl::transfer::shadow_segment;
+use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, unshadowed};
+use std::f32::consts::FRAC_1_PI;
 
 /// Energy bookkeeping of one gather.
 #[derive(Clone, Copy, Debug, Default)]
@@ -86,6 +91,89 @@ impl RowSums {
     }
 }
 
+/// A G-buffer receiver prepared for the gather's inner loop: the parts of
+/// [`unshadowed`] and [`shadow_segment`] that depend on the receiver alone, computed once per
+/// pixel instead of once per VPL–pixel pair.
+struct Prepared<'a> {
+    receiver: &'a Receiver,
+    p: Vec3,
+    /// Front geometric normal and the origin offset along it ([`crate::accel::ray_offset`]).
+    ng: Vec3,
+    offset: f32,
+    /// Set for a Lambertian receiver (the common case): the diffuse fast path.
+    lambert: Option<LambertReceiver>,
+}
+
+/// The factors of a Lambertian receiver's `β · f(wo, wi) · |cos θ_i|` that do not depend on wi.
+struct LambertReceiver {
+    /// The BSDF's geometric normal (oriented towards wo) and `wo · ng_o`.
+    ng_o: Vec3,
+    wo_ng: f32,
+    /// The shading normal and `wo · n_s`.
+    ns: Vec3,
+    wo_ns: f32,
+    /// ρ/π.
+    f: Vec3,
+    beta: Vec3,
+}
+
+impl<'a> Prepared<'a> {
+    fn new(scene: &Scene, r: &'a Receiver) -> Self {
+        let lambert = match r.bsdf.kind {
+            BsdfKind::Lambert { albedo } => Some(LambertReceiver {
+                ng_o: r.bsdf.ng,
+                wo_ng: r.wo.dot(r.bsdf.ng),
+                ns: r.bsdf.frame.n,
+                wo_ns: r.wo.dot(r.bsdf.frame.n),
+                f: albedo * FRAC_1_PI,
+                beta: r.beta,
+            }),
+            _ => None,
+        };
+        let offset = ray_offset(r.sp.p, &scene.mesh.corners(r.sp.tri));
+        Prepared { receiver: r, p: r.sp.p, ng: r.sp.ng, offset, lambert }
+    }
+
+    /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.
+    #[inline]
+    fn origin_towards(&self, target: Vec3) -> Vec3 {
+        if self.ng.dot(target - self.p) >= 0.0 {
+            self.p + self.ng * self.offset
+        } else {
+            self.p - self.ng * self.offset
+        }
+    }
+}
+
+impl LambertReceiver {
+    /// [`unshadowed`] for a diffuse VPL `i` and this receiver at `p`: the same operations in the
+    /// same order, so the same bits (`tests/packet_vs_scalar.rs` compares whole images).
+    #[inline]
+    fn unshadowed(&self, set: &VplSet, i: usize, p: Vec3, g_max: f32) -> Option<(Vec3, Vec3)> {
+        let d = set.position[i] - p;
+        let d2 = d.length_squared();
+        if !(d2 > 0.0) {
+            return None;
+        }
+        let wi = d / d2.sqrt();
+        let cos_v = set.cos_at(i, -wi);
+        if cos_v <= 0.0 {
+            return None;
+        }
+        // Bsdf::f: reflection on the geometric normal, then Lambert's same-side test.
+        if !(self.wo_ng * wi.dot(self.ng_o) > 0.0) {
+            return None;
+        }
+        let wi_ns = wi.dot(self.ns);
+        if self.wo_ns * wi_ns <= 0.0 || self.f == Vec3::ZERO {
+            return None;
+        }
+        let g = cos_v * wi_ns.abs() / d2;
+        let base = self.beta * set.radiance[i] * self.f;
+        Some((base * g.min(g_max), base * g))
+    }
+}
+
 /// Gathers `vpls` into an image of VPL-transported light (emission seen directly is not
 /// included; see [`GBuffer::emitted`]). `tracing` groups the shadow rays into packets (or not);
 /// every grouping traces the same rays and gives the same image.
@@ -102,21 +190,29 @@ pub fn gather(
 ) -> (Vec<Vec3>, GatherEnergy) {
     let min_d2 = min_distance * min_distance;
     let w = gbuf.width;
-    // The shadow ray from pixel x of row y to VPL i, with its contributions (None: nothing to
-    // trace — no receiver, too close, or zero unshadowed contribution).
-    let candidate = |x: u32, y: u32, i: usize| -> Option<Pending> {
-        let r = gbuf.receivers[(y * w + x) as usize].as_ref()?;
-        if min_d2 > 0.0 && (vpls.position[i] - r.sp.p).length_squared() < min_d2 {
+    let diffuse_vpls = vpls.all_diffuse();
+    // The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
+    // contributions (None: nothing to trace — too close, or zero unshadowed contribution).
+    let candidate = |pt: &Prepared, x: u32, i: usize| -> Option<Pending> {
+        let target = vpls.position[i];
+        if min_d2 > 0.0 && (target - pt.p).length_squared() < min_d2 {
             return None;
         }
-        let (c, full) = unshadowed(vpls, i, r, g_max)?;
-        let (o, d) = shadow_segment(scene, vpls, i, r);
-        Some((x, c, full, o, d))
+        let (c, full) = match &pt.lambert {
+            Some(l) if diffuse_vpls => l.unshadowed(vpls, i, pt.p, g_max)?,
+            _ => unshadowed(vpls, i, pt.receiver, g_max)?,
+        };
+        let o = pt.origin_towards(target);
+        Some((x, c, full, o, target - o))
     };
     let rows: Vec<(Vec<Vec3>, RayStats, GatherEnergy)> = (0..gbuf.height)
         .into_par_iter()
         .map(|y| {
             let mut st = RayStats::default();
+            let row_points: Vec<Option<Prepared>> = (0..w)
+                .map(|x| gbuf.receivers[(y * w + x) as usize].as_ref().map(|r| Prepared::new(scene, r)))
+                .collect();
+            let candidate = |x: u32, i: usize| candidate(row_points[x as usize].as_ref()?, x, i);
             let mut acc = RowSums {
                 sum: vec![Vec3::ZERO; w as usize],
                 removed: vec![Vec3::ZERO; w as usize],
@@ -126,7 +222,7 @@ pub fn gather(
                 Tracing::Single | Tracing::PrimaryPackets => {
                     for x in 0..w {
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
-                            if let Some(p) = candidate(x, y, i as usize) {
+                            if let Some(p) = candidate(x, i as usize) {
                                 st.shadow += 1;
                                 if !accel.occluded(p.3, p.4, SHADOW_T_MAX) {
                                     acc.add(p);
@@ -138,7 +234,7 @@ pub fn gather(
                 Tracing::SharedOrigin => {
                     for x in 0..w {
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
-                            if let Some(p) = candidate(x, y, i as usize) {
+                            if let Some(p) = candidate(x, i as usize) {
                                 acc.push(p, accel, &mut st);
                             }
                         }
@@ -155,7 +251,7 @@ pub fn gather(
                             let xs = (start..w).step_by(inter.n as usize).take(F8::LANES);
                             for &i in subset {
                                 for x in xs.clone() {
-                                    if let Some(p) = candidate(x, y, i as usize) {
+                                    if let Some(p) = candidate(x, i as usize) {
                                         acc.pending.push(p);
                                     }
                                 }
@@ -186,4 +282,59 @@ pub fn gather(
         energy += e;
     }
     (out, energy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::offset_origin;
+    use crate::load::builtin;
+    use crate::scene::CameraSettings;
+    use crate::vpl::VplSampler;
+    use crate::vpl::sir::Sir;
+
+    /// The prepared receivers give the bits of the general kernels: every (receiver, VPL) pair
+    /// of a Cornell-box frame (Lambertian receivers, diffuse VPLs on walls and the light).
+    #[test]
+    fn prepared_receivers_match_the_general_kernels_bit_for_bit() {
+        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let mut camera = scene.camera.clone();
+        camera.width = 48;
+        camera.height = 48;
+        let mut st = RayStats::default();
+        let gbuf = super::super::gbuffer::trace(
+            &scene,
+            &accel,
+            &camera,
+            7,
+            true,
+            4,
+            Tracing::PrimaryPackets,
+            GBuffer::default(),
+            &mut st,
+        );
+        let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 64, 11);
+        assert!(vpls.all_diffuse() && vpls.len() >= 64);
+        let mut pairs = 0;
+        for r in gbuf.receivers.iter().flatten() {
+            let pt = Prepared::new(&scene, r);
+            let lambert = pt.lambert.as_ref().expect("the Cornell box is Lambertian");
+            for i in 0..vpls.len() {
+                for g_max in [0.05, f32::INFINITY] {
+                    let fast = lambert.unshadowed(&vpls, i, pt.p, g_max);
+                    let general = unshadowed(&vpls, i, r, g_max);
+                    assert_eq!(fast.is_some(), general.is_some(), "receiver {:?}, VPL {i}", r.sp.p);
+                    if let (Some(a), Some(b)) = (fast, general) {
+                        assert_eq!(a, b);
+                        pairs += 1;
+                    }
+                }
+                let target = vpls.position[i];
+                let origin = offset_origin(&r.sp, &scene.mesh.corners(r.sp.tri), target - r.sp.p);
+                assert_eq!(pt.origin_towards(target), origin);
+            }
+        }
+        assert!(pairs > 10_000, "only {pairs} contributing pairs");
+    }
 }

@@ -21,6 +21,7 @@
 //!    emitter tinted by the VPL's own colour, so colour survives the luminance-driven chain
 //!    exactly; for glossy x_v the VPL keeps its lobe.
 
+use std::sync::OnceLock;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -82,6 +83,10 @@ pub struct MirSettings {
     pub max_steps_per_vpl: usize,
     /// When a run stops.
     pub stop: StopRule,
+    /// Independent chains run side by side (in parallel), each giving ⌈m/chains⌉ or ⌊m/chains⌋
+    /// of the m locations. Their pooled states estimate the same target, so the normalisation
+    /// is unchanged; the chain count, not the thread count, fixes the result.
+    pub chains: usize,
 }
 
 impl MirSettings {
@@ -97,6 +102,7 @@ impl MirSettings {
             light_cdf: false,
             max_steps_per_vpl: 64,
             stop: StopRule::States,
+            chains: 2,
         }
     }
 
@@ -129,7 +135,7 @@ pub struct Mir<K: MutationKernel> {
     pub kernel: K,
     /// Settings.
     pub settings: MirSettings,
-    state: Option<PathState>,
+    states: Vec<PathState>,
     jumped: bool,
     cdf: Option<(Camera, Distribution1D)>,
     move_rate: f64,
@@ -149,7 +155,7 @@ impl<K: MutationKernel> Mir<K> {
         Mir {
             kernel,
             settings,
-            state: None,
+            states: Vec::new(),
             jumped: true,
             cdf: None,
             move_rate: 0.5,
@@ -179,6 +185,20 @@ pub fn estimate_pc<K: MutationKernel>(
     seed: u64,
     stats: &mut RayStats,
 ) -> (f64, Option<PathState>) {
+    let (pc, picks) = estimate_pc_picks(kernel, ctx, n, 1, seed, stats);
+    (pc, picks.into_iter().next())
+}
+
+/// [`estimate_pc`] with `picks` independent draws ∝ weight (none when P_c = 0): the starting
+/// states of that many chains.
+pub fn estimate_pc_picks<K: MutationKernel>(
+    kernel: &K,
+    ctx: &Context,
+    n: usize,
+    picks: usize,
+    seed: u64,
+    stats: &mut RayStats,
+) -> (f64, Vec<PathState>) {
     let results: Vec<(Option<PathState>, f64, RayStats)> = (0..n)
         .into_par_iter()
         .map(|i| {
@@ -193,21 +213,80 @@ pub fn estimate_pc<K: MutationKernel>(
         *stats += r.2;
     }
     if !(total > 0.0) {
-        return (0.0, None);
+        return (0.0, Vec::new());
     }
-    let mut rng = Pcg32::from_words(&[seed, TAG_PC, u64::MAX]);
-    let mut pick = rng.next_f64() * total;
-    let mut chosen = None;
-    for (x, w, _) in results {
-        if x.is_some() && w > 0.0 {
-            chosen = x;
-            if pick < w {
-                break;
+    let chosen = (0..picks as u64)
+        .filter_map(|j| {
+            let mut rng = Pcg32::from_words(&[seed, TAG_PC, u64::MAX - j]);
+            let mut pick = rng.next_f64() * total;
+            let mut chosen = None;
+            for (x, w, _) in &results {
+                if x.is_some() && *w > 0.0 {
+                    chosen = x.as_ref();
+                    if pick < *w {
+                        break;
+                    }
+                    pick -= w;
+                }
             }
-            pick -= w;
-        }
-    }
+            chosen.cloned()
+        })
+        .collect();
     (total / n as f64, chosen)
+}
+
+/// What one chain produced in a run.
+struct ChainRun {
+    /// Consecutive states grouped by VPL location: (first state, number of states).
+    locations: Vec<(PathState, u64)>,
+    proposed: u64,
+    accepted: u64,
+    /// The state the next run continues from.
+    last: PathState,
+    /// The chain hit its step bound before its share of locations.
+    truncated: bool,
+    rays: RayStats,
+}
+
+/// Runs one chain from `x` for `m` locations (or `fixed_states` states, see [`StopRule`]).
+fn run_chain<K: MutationKernel>(
+    kernel: &K,
+    ctx: &Context,
+    chain: Chain,
+    mut x: PathState,
+    m: usize,
+    stop: StopRule,
+    fixed_states: u64,
+    max_states: u64,
+    mut rng: Pcg32,
+) -> ChainRun {
+    let mut rays = RayStats::default();
+    let mut locations: Vec<(PathState, u64)> = Vec::with_capacity(m);
+    let (mut proposed, mut accepted) = (0u64, 0u64);
+    let mut truncated = false;
+    let mut n = 0u64;
+    loop {
+        match locations.last_mut() {
+            Some((s, k)) if s.vpl.position == x.vpl.position && s.vpl.normal == x.vpl.normal => *k += 1,
+            _ => {
+                if stop == StopRule::Locations && locations.len() == m {
+                    break;
+                }
+                locations.push((x.clone(), 1));
+            }
+        }
+        n += 1;
+        if n >= fixed_states {
+            truncated = n >= max_states && locations.len() < m;
+            break;
+        }
+        let (next, acc) = step(kernel, ctx, chain, &x, &mut rng, &mut rays);
+        proposed += 1;
+        accepted += acc as u64;
+        x = next;
+    }
+    // (Locations rule: the last state opened location m + 1 and is not counted.)
+    ChainRun { locations, proposed, accepted, last: x, truncated, rays }
 }
 
 /// One MH or MTMH transition from `x`; returns the next state and whether a move was accepted.
@@ -274,22 +353,42 @@ pub fn step<K: MutationKernel>(
 
 /// K camera probes: first surfaces of stratified camera rays (the §5.5 radiance pass). Returns
 /// the receivers and the number of rays traced (misses and specular hits count as zero response).
-fn probes(ctx: &Context, k: usize, seed: u64, stats: &mut RayStats) -> (Vec<Receiver>, usize) {
+fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
     let side = (k as f64).sqrt().ceil().max(1.0) as usize;
     let cam = ctx.camera;
-    let mut out = Vec::with_capacity(side * side);
-    for i in 0..side * side {
+    let probe = |i: usize| {
+        let mut st = RayStats::default();
         let mut s = IndependentSampler::for_stream(seed, TAG_PROBE, i as u64);
         let (gx, gy) = ((i % side) as f32, (i / side) as f32);
         let raster = glam::vec2(
             (gx + s.next_1d()) / side as f32 * cam.width as f32,
             (gy + s.next_1d()) / side as f32 * cam.height as f32,
         );
-        if let Some(c) = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), stats) {
-            out.push(c.receiver);
-        }
+        let c = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), &mut st);
+        (c.map(|c| c.receiver), st)
+    };
+    let traced: Vec<(Option<Receiver>, RayStats)> = if parallel {
+        (0..side * side).into_par_iter().map(probe).collect()
+    } else {
+        (0..side * side).map(probe).collect()
+    };
+    let mut batch =
+        ProbeBatch { receivers: Vec::with_capacity(traced.len()), rays: side * side, stats: RayStats::default() };
+    for (r, st) in traced {
+        batch.stats += st;
+        batch.receivers.extend(r);
     }
-    (out, side * side)
+    batch
+}
+
+/// One batch of camera probes.
+struct ProbeBatch {
+    /// The probes that found a receiver.
+    receivers: Vec<Receiver>,
+    /// Camera rays traced (the denominator of the batch's mean).
+    rays: usize,
+    /// Rays traced building the batch.
+    stats: RayStats,
 }
 
 impl<K: MutationKernel> Mir<K> {
@@ -321,81 +420,87 @@ impl<K: MutationKernel> Mir<K> {
         let dist = self.light_choice(scene, accel, camera, &mut rays);
         let ctx = Context { scene, accel, camera, light_choice: &dist, max_light: self.settings.max_light.max(1) };
         let mut report = ChainReport::default();
-        let (pc, fresh) = estimate_pc(&self.kernel, &ctx, self.settings.pc_samples.max(1), seed, &mut rays);
+        let chains = self.settings.chains.clamp(1, m.max(1));
+        let (pc, fresh) =
+            estimate_pc_picks(&self.kernel, &ctx, self.settings.pc_samples.max(1), chains, seed, &mut rays);
         report.pc = pc;
-        // Continue the previous chain unless the camera jumped; re-evaluate it for this camera.
-        let carried = if self.jumped {
-            None
+        // Continue the previous chains unless the camera jumped; re-evaluate them for this
+        // camera. A chain without a state starts from a fresh pick.
+        let mut carried: Vec<Option<PathState>> = if self.jumped {
+            Vec::new()
         } else {
-            self.state.take().and_then(|x| self.kernel.reevaluate(&ctx, &x, &mut rays))
+            std::mem::take(&mut self.states).iter().map(|x| self.kernel.reevaluate(&ctx, x, &mut rays)).collect()
         };
-        let Some(mut x) = carried.or(fresh) else {
+        carried.resize(chains, None);
+        let mut fresh = fresh.into_iter();
+        let starts: Vec<PathState> =
+            carried.into_iter().take(chains).filter_map(|c| c.or_else(|| fresh.next())).collect();
+        if starts.is_empty() {
             report.dark = true;
-            self.state = None;
+            self.states.clear();
             self.last = report;
             let warnings = vec![format!(
                 "no light reaches what the camera sees through any path the chain samples (P_c = 0 from {} samples): the image shows only emitters seen directly",
                 self.settings.pc_samples
             )];
             return (VplSet::default(), SamplerStats { time: t0.elapsed(), rays, warnings, ..Default::default() });
-        };
-        self.jumped = false;
-        // The chain, grouping consecutive states by VPL location.
-        let mut rng = Pcg32::from_words(&[seed, TAG_CHAIN]);
-        let mut locations: Vec<(PathState, u64)> = Vec::with_capacity(m);
-        let (mut proposed, mut accepted) = (0u64, 0u64);
-        let max_states = (self.settings.max_steps_per_vpl.max(1) * m.max(1)) as u64;
-        // Fixed number of states (see `StopRule`): from the rate at which earlier runs moved to
-        // new locations, decided before this run starts.
-        // The first run of a sampler has no measured rate yet: it stops at m locations.
-        let stop = if self.runs == 0 { StopRule::Locations } else { self.settings.stop };
-        let fixed_states = match stop {
-            StopRule::States => {
-                ((m as f64 / self.move_rate.clamp(1e-3, 1.0)).ceil() as u64).clamp(m as u64, max_states)
-            }
-            StopRule::Locations => max_states,
-        };
-        let mut n = 0u64;
-        loop {
-            match locations.last_mut() {
-                Some((s, k)) if s.vpl.position == x.vpl.position && s.vpl.normal == x.vpl.normal => *k += 1,
-                _ => {
-                    if stop == StopRule::Locations && locations.len() == m {
-                        break;
-                    }
-                    locations.push((x.clone(), 1));
-                }
-            }
-            n += 1;
-            if n >= fixed_states {
-                report.truncated = n >= max_states && locations.len() < m;
-                break;
-            }
-            let (next, acc) = step(&self.kernel, &ctx, self.settings.chain, &x, &mut rng, &mut rays);
-            proposed += 1;
-            accepted += acc as u64;
-            x = next;
         }
-        // (Locations rule: the last state opened location m + 1 and is not counted.)
+        self.jumped = false;
+        // The chains, each grouping its consecutive states by VPL location. Fixed number of
+        // states (see `StopRule`): from the rate at which earlier runs moved to new locations,
+        // decided before this run starts. The first run of a sampler has no measured rate yet:
+        // it stops at m locations.
+        let stop = if self.runs == 0 { StopRule::Locations } else { self.settings.stop };
+        let count = starts.len();
+        let rate = self.move_rate.clamp(1e-3, 1.0);
+        let (kernel, chain, steps) = (&self.kernel, self.settings.chain, self.settings.max_steps_per_vpl.max(1));
+        let runs: Vec<ChainRun> = starts
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, x)| {
+                let share = m / count + (c < m % count) as usize;
+                let max_states = (steps * share.max(1)) as u64;
+                let fixed_states = match stop {
+                    StopRule::States => ((share as f64 / rate).ceil() as u64).clamp(share as u64, max_states),
+                    StopRule::Locations => max_states,
+                };
+                // Chain 0 keeps the stream a single chain had.
+                let rng = if c == 0 {
+                    Pcg32::from_words(&[seed, TAG_CHAIN])
+                } else {
+                    Pcg32::from_words(&[seed, TAG_CHAIN, c as u64])
+                };
+                run_chain(kernel, &ctx, chain, x, share, stop, fixed_states, max_states, rng)
+            })
+            .collect();
+        let (mut proposed, mut accepted) = (0u64, 0u64);
+        let mut locations: Vec<(PathState, u64)> = Vec::with_capacity(m);
+        for run in runs {
+            proposed += run.proposed;
+            accepted += run.accepted;
+            rays += run.rays;
+            report.truncated |= run.truncated;
+            locations.extend(run.locations);
+            self.states.push(run.last);
+        }
         let n_states: u64 = locations.iter().map(|l| l.1).sum();
         let rate = locations.len() as f64 / n_states.max(1) as f64;
         self.move_rate = if self.runs == 0 { rate } else { 0.8 * self.move_rate + 0.2 * rate };
         self.runs += 1;
         report.states = n_states;
         report.locations = locations.len();
-        self.state = Some(x);
         // Normalisation: each location's camera response from probe batches (module doc).
+        // Each batch has its own seed, so the result does not depend on which thread traces it.
+        // The first batch is traced in parallel up front; most VPLs are seen by enough of its
+        // probes. Later batches are traced when a VPL first needs them, serially inside the
+        // parallel loop (a parallel initialiser could steal a task that asks for the same batch
+        // and re-enter its own initialisation).
         let batches = self.settings.probe_batches.max(1);
-        let probe_sets: Vec<(Vec<Receiver>, usize)> = (0..batches)
-            .map(|b| {
-                probes(
-                    &ctx,
-                    self.settings.probes.max(1),
-                    seed ^ (b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
-                    &mut rays,
-                )
-            })
-            .collect();
+        let batch_seed = |b: usize| seed ^ (b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        let k = self.settings.probes.max(1);
+        let probe_sets: Vec<OnceLock<ProbeBatch>> = (0..batches).map(|_| OnceLock::new()).collect();
+        let _ = probe_sets[0].set(probes(&ctx, k, batch_seed(0), true));
+        let batch = |b: usize| probe_sets[b].get_or_init(|| probes(&ctx, k, batch_seed(b), false));
         let npix = camera.pixel_count() as f64;
         let nl = scene.lights.list.len();
         report.power_by_light = vec![0.0; nl];
@@ -411,7 +516,8 @@ impl<K: MutationKernel> Mir<K> {
                 one.push(s.vpl);
                 // Probe batches until enough probes see the VPL (or all batches are used).
                 let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
-                for (receivers, count) in &probe_sets {
+                for b in 0..batches {
+                    let ProbeBatch { receivers, rays: count, .. } = batch(b);
                     for r in receivers {
                         let y = luminance(contribution(scene, accel, &one, 0, r, g_target, &mut st)) as f64;
                         sum += y;
@@ -441,6 +547,9 @@ impl<K: MutationKernel> Mir<K> {
                 (Some(v), st)
             })
             .collect();
+        for b in probe_sets.iter().filter_map(OnceLock::get) {
+            rays += b.stats;
+        }
         let mut set = VplSet::default();
         for ((v, st), (s, k)) in scaled.into_iter().zip(&locations) {
             rays += st;
@@ -453,9 +562,9 @@ impl<K: MutationKernel> Mir<K> {
         let mut warnings = Vec::new();
         if report.truncated {
             warnings.push(format!(
-                "the chain found only {} of {m} VPL locations within its bound of {} states ({} per VPL): light reaches the camera through very few paths",
+                "the chains found only {} of {m} VPL locations within their bound of {} states ({} per VPL): light reaches the camera through very few paths",
                 report.locations,
-                max_states,
+                self.settings.max_steps_per_vpl.max(1) * m.max(1),
                 self.settings.max_steps_per_vpl
             ));
         }
@@ -487,7 +596,7 @@ impl<K: MutationKernel> VplSampler for Mir<K> {
     }
 
     fn reset(&mut self) {
-        self.state = None;
+        self.states.clear();
         self.jumped = true;
     }
 
