@@ -94,8 +94,7 @@ impl RowSums {
 /// A G-buffer receiver prepared for the gather's inner loop: the parts of
 /// [`unshadowed`] and [`shadow_segment`] that depend on the receiver alone, computed once per
 /// pixel instead of once per VPL–pixel pair.
-struct Prepared<'a> {
-    receiver: &'a Receiver,
+pub(crate) struct Prepared {
     p: Vec3,
     /// Front geometric normal and the origin offset along it ([`crate::accel::ray_offset`]).
     ng: Vec3,
@@ -117,8 +116,9 @@ struct LambertReceiver {
     beta: Vec3,
 }
 
-impl<'a> Prepared<'a> {
-    fn new(scene: &Scene, r: &'a Receiver) -> Self {
+impl Prepared {
+    /// Prepares receiver `r` of `scene`.
+    pub(crate) fn new(scene: &Scene, r: &Receiver) -> Self {
         let lambert = match r.bsdf.kind {
             BsdfKind::Lambert { albedo } => Some(LambertReceiver {
                 ng_o: r.bsdf.ng,
@@ -131,11 +131,34 @@ impl<'a> Prepared<'a> {
             _ => None,
         };
         let offset = ray_offset(r.sp.p, &scene.mesh.corners(r.sp.tri));
-        Prepared { receiver: r, p: r.sp.p, ng: r.sp.ng, offset, lambert }
+        Prepared { p: r.sp.p, ng: r.sp.ng, offset, lambert }
+    }
+
+    /// [`crate::vpl::transfer::contribution`] of VPL `i` of `set` with visibility, clamped at
+    /// `g_max`.
+    /// `r` is the receiver this was prepared from.
+    pub(crate) fn contribution(
+        &self,
+        r: &Receiver,
+        accel: &Accel,
+        set: &VplSet,
+        i: usize,
+        g_max: f32,
+        stats: &mut RayStats,
+    ) -> Vec3 {
+        let c = match &self.lambert {
+            Some(l) if set.lobe[i] == crate::vpl::set::NO_LOBE => l.unshadowed(set, i, self.p, g_max),
+            _ => unshadowed(set, i, r, g_max),
+        };
+        let Some((c, _)) = c else { return Vec3::ZERO };
+        let target = set.position[i];
+        let o = self.origin_towards(target);
+        stats.shadow += 1;
+        if accel.occluded(o, target - o, SHADOW_T_MAX) { Vec3::ZERO } else { c }
     }
 
     /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.
-    #[inline]
+    #[inline(always)]
     fn origin_towards(&self, target: Vec3) -> Vec3 {
         if self.ng.dot(target - self.p) >= 0.0 {
             self.p + self.ng * self.offset
@@ -148,7 +171,7 @@ impl<'a> Prepared<'a> {
 impl LambertReceiver {
     /// [`unshadowed`] for a diffuse VPL `i` and this receiver at `p`: the same operations in the
     /// same order, so the same bits (`tests/packet_vs_scalar.rs` compares whole images).
-    #[inline]
+    #[inline(always)]
     fn unshadowed(&self, set: &VplSet, i: usize, p: Vec3, g_max: f32) -> Option<(Vec3, Vec3)> {
         let d = set.position[i] - p;
         let d2 = d.length_squared();
@@ -193,14 +216,14 @@ pub fn gather(
     let diffuse_vpls = vpls.all_diffuse();
     // The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
     // contributions (None: nothing to trace — too close, or zero unshadowed contribution).
-    let candidate = |pt: &Prepared, x: u32, i: usize| -> Option<Pending> {
+    let candidate = |pt: &Prepared, r: &Receiver, x: u32, i: usize| -> Option<Pending> {
         let target = vpls.position[i];
         if min_d2 > 0.0 && (target - pt.p).length_squared() < min_d2 {
             return None;
         }
         let (c, full) = match &pt.lambert {
             Some(l) if diffuse_vpls => l.unshadowed(vpls, i, pt.p, g_max)?,
-            _ => unshadowed(vpls, i, pt.receiver, g_max)?,
+            _ => unshadowed(vpls, i, r, g_max)?,
         };
         let o = pt.origin_towards(target);
         Some((x, c, full, o, target - o))
@@ -212,7 +235,10 @@ pub fn gather(
             let row_points: Vec<Option<Prepared>> = (0..w)
                 .map(|x| gbuf.receivers[(y * w + x) as usize].as_ref().map(|r| Prepared::new(scene, r)))
                 .collect();
-            let candidate = |x: u32, i: usize| candidate(row_points[x as usize].as_ref()?, x, i);
+            let candidate = |x: u32, i: usize| {
+                let r = gbuf.receivers[(y * w + x) as usize].as_ref()?;
+                candidate(row_points[x as usize].as_ref()?, r, x, i)
+            };
             let mut acc = RowSums {
                 sum: vec![Vec3::ZERO; w as usize],
                 removed: vec![Vec3::ZERO; w as usize],

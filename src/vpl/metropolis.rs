@@ -29,10 +29,11 @@ use rayon::prelude::*;
 use super::cdf::light_cdf;
 use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample};
 use super::set::{Vpl, VplSet};
-use super::transfer::{Receiver, contribution};
+use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
 use crate::accel::Accel;
 use crate::color::luminance;
+use crate::gather::shade::Prepared;
 use crate::sampling::{Distribution1D, IndependentSampler, Pcg32, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -365,9 +366,9 @@ fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
             (gy + s.next_1d()) / side as f32 * cam.height as f32,
         );
         let c = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), &mut st);
-        (c.map(|c| c.receiver), st)
+        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver))), st)
     };
-    let traced: Vec<(Option<Receiver>, RayStats)> = if parallel {
+    let traced: Vec<(Option<(Receiver, Prepared)>, RayStats)> = if parallel {
         (0..side * side).into_par_iter().map(probe).collect()
     } else {
         (0..side * side).map(probe).collect()
@@ -383,8 +384,8 @@ fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
 
 /// One batch of camera probes.
 struct ProbeBatch {
-    /// The probes that found a receiver.
-    receivers: Vec<Receiver>,
+    /// The probes that found a receiver, prepared as the gather prepares its pixels.
+    receivers: Vec<(Receiver, Prepared)>,
     /// Camera rays traced (the denominator of the batch's mean).
     rays: usize,
     /// Rays traced building the batch.
@@ -518,8 +519,8 @@ impl<K: MutationKernel> Mir<K> {
                 let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
                 for b in 0..batches {
                     let ProbeBatch { receivers, rays: count, .. } = batch(b);
-                    for r in receivers {
-                        let y = luminance(contribution(scene, accel, &one, 0, r, g_target, &mut st)) as f64;
+                    for (r, pt) in receivers {
+                        let y = luminance(pt.contribution(r, accel, &one, 0, g_target, &mut st)) as f64;
                         sum += y;
                         sum2 += y * y;
                         hits += (y > 0.0) as usize;
