@@ -40,21 +40,18 @@ impl ShearedRay {
     /// Precomputes the shear for a ray (direction need not be normalised but must be non-zero).
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        // The dominant axis (ties as in: x if it beats y and z, else y if it beats z, else z),
+        // chosen without branches: a ray's axis is random to the branch predictor.
         let a = dir.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z { 0 } else { 2 }
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        if dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        let dz = dir[kz];
-        ShearedRay { origin: origin.into(), kz, kx, ky, sx: dir[kx] / dz, sy: dir[ky] / dz, sz: 1.0 / dz }
+        let x_max = (a.x > a.y) & (a.x > a.z);
+        let kz = (!x_max) as usize * (1 + !(a.y > a.z) as usize);
+        let d = dir.to_array();
+        // The next two axes, swapped when dir[kz] < 0 to keep the winding.
+        let flip = (d[kz] < 0.0) as usize;
+        let kx = [[1, 2], [2, 0], [0, 1]][kz][flip];
+        let ky = 3 - kz - kx;
+        let dz = d[kz];
+        ShearedRay { origin: origin.into(), kz, kx, ky, sx: d[kx] / dz, sy: d[ky] / dz, sz: 1.0 / dz }
     }
 }
 
@@ -225,7 +222,8 @@ pub fn woop_lanes<F: Lanes>(a: [F; 3], b: [F; 3], c: [F; 3], sx: F, sy: F, sz: F
 #[inline(always)]
 pub fn intersect_block(ray: &ShearedRay, block: &TriBlock, count: usize, t_max: f32) -> LaneHits<F4> {
     let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
-    let (ox, oy, oz) = (F4::splat(ray.origin[kx]), F4::splat(ray.origin[ky]), F4::splat(ray.origin[kz]));
+    let o = ray.origin.to_array();
+    let (ox, oy, oz) = (F4::splat(o[kx]), F4::splat(o[ky]), F4::splat(o[kz]));
     let corner = |k: usize| -> [F4; 3] {
         [
             F4::from_array(block.v[3 * k + kx]) - ox,
