@@ -15,10 +15,10 @@ use crate::color::luminance;
 use crate::scene::Scene;
 use crate::simd::{F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
-use crate::vpl::VplSet;
 #[cfg(doc)]
 use crate::vpl::transfer::shadow_segment;
 use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, unshadowed};
+use crate::vpl::{TWO_SIDED, VplSet};
 use std::f32::consts::FRAC_1_PI;
 
 /// Energy bookkeeping of one gather.
@@ -197,6 +197,101 @@ impl LambertReceiver {
     }
 }
 
+/// Eight diffuse VPLs of one interleave subset in lanes, for [`LambertReceiver::unshadowed8`].
+#[derive(Clone, Copy)]
+struct VplChunk {
+    /// VPL index of each lane.
+    index: [u32; 8],
+    /// Lanes holding a VPL (low bits).
+    lanes: u32,
+    position: [F8; 3],
+    normal: [F8; 3],
+    radiance: [F8; 3],
+    /// Masks: the VPL is punctual (zero normal, cosine 1); it emits on both sides.
+    punctual: F8,
+    two_sided: F8,
+}
+
+/// The VPLs of every interleave subset, eight to a chunk, in subset order.
+fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
+    inter
+        .subsets
+        .iter()
+        .map(|subset| {
+            subset
+                .chunks(F8::LANES)
+                .map(|ids| {
+                    let at = |f: &dyn Fn(usize) -> f32| F8::from_fn(|j| ids.get(j).map_or(0.0, |&i| f(i as usize)));
+                    let flag = |f: &dyn Fn(usize) -> bool| {
+                        F8::mask_from_bits(ids.iter().enumerate().fold(0, |m, (j, &i)| m | (f(i as usize) as u32) << j))
+                    };
+                    VplChunk {
+                        index: std::array::from_fn(|j| ids.get(j).copied().unwrap_or(0)),
+                        lanes: (1u32 << ids.len()) - 1,
+                        position: [
+                            at(&|i| vpls.position[i].x),
+                            at(&|i| vpls.position[i].y),
+                            at(&|i| vpls.position[i].z),
+                        ],
+                        normal: [at(&|i| vpls.normal[i].x), at(&|i| vpls.normal[i].y), at(&|i| vpls.normal[i].z)],
+                        radiance: [
+                            at(&|i| vpls.radiance[i].x),
+                            at(&|i| vpls.radiance[i].y),
+                            at(&|i| vpls.radiance[i].z),
+                        ],
+                        punctual: flag(&|i| vpls.normal[i] == Vec3::ZERO),
+                        two_sided: flag(&|i| vpls.flags[i] & TWO_SIDED != 0),
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Clamped and unclamped contributions of up to eight VPLs, and the lanes where they are nonzero.
+struct LaneContributions {
+    lanes: u32,
+    clamped: [[f32; 8]; 3],
+    full: [[f32; 8]; 3],
+}
+
+impl LambertReceiver {
+    /// [`LambertReceiver::unshadowed`] for the eight VPLs of `ch` at once, lane for lane the
+    /// same operations (no fused multiply-adds), so the same bits; lanes closer than
+    /// `min_d2` (squared) are dropped as the scalar gather drops them.
+    #[inline(always)]
+    fn unshadowed8(&self, ch: &VplChunk, p: Vec3, g_max: f32, min_d2: f32) -> LaneContributions {
+        let (zero, one) = (F8::splat(0.0), F8::splat(1.0));
+        let d = [ch.position[0] - F8::splat(p.x), ch.position[1] - F8::splat(p.y), ch.position[2] - F8::splat(p.z)];
+        let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        // (A black receiver reflects nothing: no lanes.)
+        let lanes = if self.f == Vec3::ZERO { 0 } else { ch.lanes };
+        let mut valid = F8::mask_from_bits(lanes).and(d2.gt(zero));
+        if min_d2 > 0.0 {
+            valid = valid.and_not(d2.lt(F8::splat(min_d2)));
+        }
+        let dist = d2.sqrt();
+        let wi = [d[0] / dist, d[1] / dist, d[2] / dist];
+        let dot = |a: &[F8; 3], v: Vec3| a[0] * F8::splat(v.x) + a[1] * F8::splat(v.y) + a[2] * F8::splat(v.z);
+        // cos_at(−wi): the VPL normal against the direction back to it.
+        let c = zero - (ch.normal[0] * wi[0] + ch.normal[1] * wi[1] + ch.normal[2] * wi[2]);
+        let cos_v = ch.punctual.select(one, ch.two_sided.select(c.abs(), c.vmax(zero)));
+        valid = valid.and_not(cos_v.le(zero));
+        valid = valid.and((F8::splat(self.wo_ng) * dot(&wi, self.ng_o)).gt(zero));
+        let wi_ns = dot(&wi, self.ns);
+        valid = valid.and_not((F8::splat(self.wo_ns) * wi_ns).le(zero));
+        let g = cos_v * wi_ns.abs() / d2;
+        let g_c = g.vmin(F8::splat(g_max));
+        let base = |k: usize| F8::splat(self.beta[k]) * ch.radiance[k] * F8::splat(self.f[k]);
+        let (b0, b1, b2) = (base(0), base(1), base(2));
+        LaneContributions {
+            lanes: valid.bitmask(),
+            clamped: [(b0 * g_c).to_array(), (b1 * g_c).to_array(), (b2 * g_c).to_array()],
+            full: [(b0 * g).to_array(), (b1 * g).to_array(), (b2 * g).to_array()],
+        }
+    }
+}
+
 /// Gathers `vpls` into an image of VPL-transported light (emission seen directly is not
 /// included; see [`GBuffer::emitted`]). `tracing` groups the shadow rays into packets (or not);
 /// every grouping traces the same rays and gives the same image.
@@ -214,6 +309,8 @@ pub fn gather(
     let min_d2 = min_distance * min_distance;
     let w = gbuf.width;
     let diffuse_vpls = vpls.all_diffuse();
+    let chunks = (diffuse_vpls && matches!(tracing, Tracing::Single | Tracing::PrimaryPackets))
+        .then(|| chunk_subsets(vpls, inter));
     // The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
     // contributions (None: nothing to trace — too close, or zero unshadowed contribution).
     let candidate = |pt: &Prepared, r: &Receiver, x: u32, i: usize| -> Option<Pending> {
@@ -247,6 +344,31 @@ pub fn gather(
             match tracing {
                 Tracing::Single | Tracing::PrimaryPackets => {
                     for x in 0..w {
+                        // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
+                        if let (Some(chunks), Some(pt)) = (&chunks, &row_points[x as usize])
+                            && let Some(l) = &pt.lambert
+                        {
+                            if l.f == Vec3::ZERO {
+                                continue;
+                            }
+                            for ch in &chunks[inter.subset_of(x, y)] {
+                                let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
+                                let mut m = lc.lanes;
+                                while m != 0 {
+                                    let j = m.trailing_zeros() as usize;
+                                    m &= m - 1;
+                                    let target = vpls.position[ch.index[j] as usize];
+                                    let o = pt.origin_towards(target);
+                                    st.shadow += 1;
+                                    if !accel.occluded(o, target - o, SHADOW_T_MAX) {
+                                        let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
+                                        let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
+                                        acc.add((x, c, full, o, target - o));
+                                    }
+                                }
+                            }
+                            continue;
+                        }
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
                             if let Some(p) = candidate(x, i as usize) {
                                 st.shadow += 1;
@@ -343,9 +465,26 @@ mod tests {
         let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 64, 11);
         assert!(vpls.all_diffuse() && vpls.len() >= 64);
         let mut pairs = 0;
+        let chunks = chunk_subsets(&vpls, &Interleave::new(&vpls, 1, 1));
         for r in gbuf.receivers.iter().flatten() {
             let pt = Prepared::new(&scene, r);
             let lambert = pt.lambert.as_ref().expect("the Cornell box is Lambertian");
+            // The eight-lane kernel against the scalar one, lane for lane.
+            for ch in &chunks[0] {
+                for (g_max, min_d2) in [(0.05, 0.0), (f32::INFINITY, 0.0), (f32::INFINITY, 0.5)] {
+                    let lc = lambert.unshadowed8(ch, pt.p, g_max, min_d2);
+                    for j in 0..ch.lanes.count_ones() as usize {
+                        let i = ch.index[j] as usize;
+                        let near = (vpls.position[i] - pt.p).length_squared() < min_d2;
+                        let scalar = lambert.unshadowed(&vpls, i, pt.p, g_max).filter(|_| !near);
+                        assert_eq!(lc.lanes >> j & 1 != 0, scalar.is_some(), "lane {j}, VPL {i}");
+                        if let Some((c, full)) = scalar {
+                            let lane = |a: &[[f32; 8]; 3]| Vec3::new(a[0][j], a[1][j], a[2][j]);
+                            assert_eq!((lane(&lc.clamped), lane(&lc.full)), (c, full), "lane {j}, VPL {i}");
+                        }
+                    }
+                }
+            }
             for i in 0..vpls.len() {
                 for g_max in [0.05, f32::INFINITY] {
                     let fast = lambert.unshadowed(&vpls, i, pt.p, g_max);
