@@ -209,6 +209,37 @@ fn shadow_packets_to_one_point_match_single_rays() {
     }
 }
 
+/// The shadow cache changes no answer: shadow rays from every primary hit (and random surface
+/// points) to 64 targets, each target keeping the leaf that last blocked a ray to it, as the
+/// gather does, agree with plain occlusion queries ray for ray.
+#[test]
+fn occlusion_with_a_shadow_cache_matches_plain_occlusion() {
+    for case in cases() {
+        let mut receivers = primary_hits(case);
+        let mut rng = Pcg32::new(5);
+        while receivers.len() < RAYS_PER_KIND / 4 {
+            receivers.push(random_surface_point(&case.scene, &mut rng));
+        }
+        let targets: Vec<Vec3> = (0..64).map(|_| random_surface_point(&case.scene, &mut rng).p).collect();
+        let mut hints = vec![mirage::accel::single::NO_OCCLUDER; targets.len()];
+        let (mut rays_traced, mut blocked) = (0, 0);
+        for (k, r) in receivers.iter().enumerate() {
+            for j in [k % 64, (k * 7 + 3) % 64, (k / 3) % 64, (k * 13) % 64] {
+                let target = targets[j];
+                let origin = offset_origin(r, &case.scene.mesh.corners(r.tri), target - r.p);
+                let plain = case.accel.occluded(origin, target - origin, SHADOW_T_MAX);
+                let cached = case.accel.occluded_cached(origin, target - origin, SHADOW_T_MAX, &mut hints[j]);
+                assert_eq!(plain, cached, "{}: receiver {k} ({:?}) to target {j}", case.name, r.p);
+                rays_traced += 1;
+                blocked += plain as usize;
+            }
+        }
+        assert!(rays_traced >= RAYS_PER_KIND, "{}: {rays_traced} rays", case.name);
+        // Both answers occur, so the cache is exercised.
+        assert!(blocked > 0 && blocked < rays_traced, "{}: {blocked} of {rays_traced} blocked", case.name);
+    }
+}
+
 #[test]
 fn axis_parallel_rays_match_single_rays() {
     for case in cases() {

@@ -23,7 +23,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::single::{CULL_SLACK, CanonicalRay, ROBUST, closest, occluded};
+use super::single::{CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded};
 use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
 use super::{Accel, Hit};
@@ -706,7 +706,9 @@ fn closest_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> (u32, F,
 
 /// Occlusion of an incoherent packet, lane by lane with the single-ray traversal.
 fn occluded_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> u32 {
-    (0..F::LANES).filter(|&i| p.active >> i & 1 != 0 && occluded(bvh, &p.ray(i))).fold(0, |m, i| m | 1 << i)
+    (0..F::LANES)
+        .filter(|&i| p.active >> i & 1 != 0 && occluded(bvh, &p.ray(i), &mut NO_OCCLUDER.clone()))
+        .fold(0, |m, i| m | 1 << i)
 }
 
 #[inline(always)]

@@ -83,7 +83,17 @@ impl Accel {
     /// True when something blocks `origin + t·dir` for t in (0, t_max).
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        self.canonical(origin, dir, t_max).is_some_and(|ray| occluded(&self.wide, &ray))
+        self.occluded_cached(origin, dir, t_max, &mut NO_OCCLUDER.clone())
+    }
+
+    /// [`Accel::occluded`] with an occluder cache (a shadow cache): `hint` names a leaf that
+    /// blocked a similar ray — the previous shadow ray to the same VPL from a nearby pixel — and
+    /// is tested before the traversal; a traversal that finds an occluder leaves its leaf in
+    /// `hint` ([`NO_OCCLUDER`]: none yet). The answer is exactly `occluded`'s: a hit in the
+    /// hinted leaf is a hit, and a miss there falls back to the full traversal.
+    #[inline]
+    pub fn occluded_cached(&self, origin: Vec3, dir: Vec3, t_max: f32, hint: &mut u32) -> bool {
+        self.canonical(origin, dir, t_max).is_some_and(|ray| occluded(&self.wide, &ray, hint))
     }
 
     /// [`Accel::intersect`] through obvhs's own CWBVH traversal (the benchmark baseline).
@@ -338,26 +348,38 @@ fn closest_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, stack: &mut S) -
     }
 }
 
-/// Any hit in (0, t_max) in the canonical frame.
+/// "No occluder remembered" for [`Accel::occluded_cached`].
+pub const NO_OCCLUDER: u32 = u32::MAX;
+
+/// Any hit in (0, t_max) in the canonical frame; the leaf in `hint` (a leaf reference, or
+/// [`NO_OCCLUDER`]) is tested first, and the occluding leaf found by a traversal is stored there.
 #[inline]
-pub(crate) fn occluded(bvh: &WideBvh<8>, ray: &CanonicalRay) -> bool {
+pub(crate) fn occluded(bvh: &WideBvh<8>, ray: &CanonicalRay, hint: &mut u32) -> bool {
     let need = bvh.stack_need();
     if need <= 16 {
-        occluded_with(bvh, ray, &mut ArrayStack::<16>::new())
+        occluded_with(bvh, ray, hint, &mut ArrayStack::<16>::new())
     } else if need <= 48 {
-        occluded_with(bvh, ray, &mut ArrayStack::<48>::new())
+        occluded_with(bvh, ray, hint, &mut ArrayStack::<48>::new())
     } else if need <= STACK {
-        occluded_with(bvh, ray, &mut ArrayStack::<STACK>::new())
+        occluded_with(bvh, ray, hint, &mut ArrayStack::<STACK>::new())
     } else {
-        occluded_with(bvh, ray, &mut Vec::with_capacity(bvh.stack_need()))
+        occluded_with(bvh, ray, hint, &mut Vec::with_capacity(bvh.stack_need()))
     }
 }
 
 #[inline(always)]
-fn occluded_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, stack: &mut S) -> bool {
+fn occluded_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, hint: &mut u32, stack: &mut S) -> bool {
     let sheared = ShearedRay::new(ray.origin, ray.dir);
-    let box_ray = BoxRay::new(ray.origin, ray.dir);
     let t_max = ray.t_max;
+    let blocks = |r: u32| {
+        let (b, count) = leaf_parts(r);
+        let h = intersect_block(&sheared, &bvh.blocks[b], count, t_max);
+        h.mask.and(h.t.lt(F4::splat(t_max))).bitmask() != 0
+    };
+    if *hint != NO_OCCLUDER && blocks(*hint) {
+        return true;
+    }
+    let box_ray = BoxRay::new(ray.origin, ray.dir);
     let t_cull = cull_distance(t_max);
     let mut cur = Some(bvh.root);
     loop {
@@ -367,9 +389,8 @@ fn occluded_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, stack: &mut S) 
                 let (t_near, mask) = box_ray.test(&node.bounds, t_cull);
                 cur = descend(stack, &node.child, t_near, mask, false);
             } else {
-                let (b, count) = leaf_parts(r);
-                let h = intersect_block(&sheared, &bvh.blocks[b], count, t_max);
-                if h.mask.and(h.t.lt(F4::splat(t_max))).bitmask() != 0 {
+                if blocks(r) {
+                    *hint = r;
                     return true;
                 }
                 cur = None;

@@ -10,6 +10,7 @@ use super::gbuffer::GBuffer;
 use super::interleave::Interleave;
 use crate::accel::Accel;
 use crate::accel::ray_offset;
+use crate::accel::single::NO_OCCLUDER;
 use crate::bsdf::BsdfKind;
 use crate::color::luminance;
 use crate::scene::Scene;
@@ -343,6 +344,8 @@ pub fn gather(
             };
             match tracing {
                 Tracing::Single | Tracing::PrimaryPackets => {
+                    // Shadow cache: per VPL, the leaf that last blocked a ray to it in this row.
+                    let mut occluders = vec![NO_OCCLUDER; vpls.len()];
                     for x in 0..w {
                         // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
                         if let (Some(chunks), Some(pt)) = (&chunks, &row_points[x as usize])
@@ -360,7 +363,8 @@ pub fn gather(
                                     let target = vpls.position[ch.index[j] as usize];
                                     let o = pt.origin_towards(target);
                                     st.shadow += 1;
-                                    if !accel.occluded(o, target - o, SHADOW_T_MAX) {
+                                    let hint = &mut occluders[ch.index[j] as usize];
+                                    if !accel.occluded_cached(o, target - o, SHADOW_T_MAX, hint) {
                                         let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
                                         let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
                                         acc.add((x, c, full, o, target - o));
@@ -372,7 +376,7 @@ pub fn gather(
                         for &i in &inter.subsets[inter.subset_of(x, y)] {
                             if let Some(p) = candidate(x, i as usize) {
                                 st.shadow += 1;
-                                if !accel.occluded(p.3, p.4, SHADOW_T_MAX) {
+                                if !accel.occluded_cached(p.3, p.4, SHADOW_T_MAX, &mut occluders[i as usize]) {
                                     acc.add(p);
                                 }
                             }
