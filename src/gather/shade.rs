@@ -136,7 +136,7 @@ impl Prepared {
     }
 
     /// [`crate::vpl::transfer::contribution`] of VPL `i` of `set` with visibility, clamped at
-    /// `g_max`.
+    /// `g_max`; `hint` is the shadow cache of [`Accel::occluded_cached`].
     /// `r` is the receiver this was prepared from.
     pub(crate) fn contribution(
         &self,
@@ -145,6 +145,7 @@ impl Prepared {
         set: &VplSet,
         i: usize,
         g_max: f32,
+        hint: &mut u32,
         stats: &mut RayStats,
     ) -> Vec3 {
         let c = match &self.lambert {
@@ -155,7 +156,7 @@ impl Prepared {
         let target = set.position[i];
         let o = self.origin_towards(target);
         stats.shadow += 1;
-        if accel.occluded(o, target - o, SHADOW_T_MAX) { Vec3::ZERO } else { c }
+        if accel.occluded_cached(o, target - o, SHADOW_T_MAX, hint) { Vec3::ZERO } else { c }
     }
 
     /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.

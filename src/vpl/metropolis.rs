@@ -517,10 +517,12 @@ impl<K: MutationKernel> Mir<K> {
                 one.push(s.vpl);
                 // Probe batches until enough probes see the VPL (or all batches are used).
                 let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
+                // Neighbouring probes are blocked by the same leaf: a shadow cache for this VPL.
+                let mut hint = crate::accel::single::NO_OCCLUDER;
                 for b in 0..batches {
                     let ProbeBatch { receivers, rays: count, .. } = batch(b);
                     for (r, pt) in receivers {
-                        let y = luminance(pt.contribution(r, accel, &one, 0, g_target, &mut st)) as f64;
+                        let y = luminance(pt.contribution(r, accel, &one, 0, g_target, &mut hint, &mut st)) as f64;
                         sum += y;
                         sum2 += y * y;
                         hits += (y > 0.0) as usize;
