@@ -137,11 +137,13 @@ pub struct SamplerConfig {
     pub candidates: usize,
     /// MIR: choose lights with a light-source CDF.
     pub light_cdf: bool,
+    /// MIR: independent chains run side by side.
+    pub chains: usize,
 }
 
 impl Default for SamplerConfig {
     fn default() -> Self {
-        SamplerConfig { max_depth: 64, kernel: KernelArg::Bidir, candidates: 10, light_cdf: false }
+        SamplerConfig { max_depth: 64, kernel: KernelArg::Bidir, candidates: 10, light_cdf: false, chains: 2 }
     }
 }
 
@@ -176,7 +178,7 @@ impl VplSamplerArg {
     pub fn build_with(self, c: &SamplerConfig) -> Box<dyn crate::vpl::VplSampler> {
         use crate::vpl::metropolis::{Chain, Mir, MirSettings};
         use crate::vpl::mutation::{Bidirectional, PrimarySample};
-        let mir = |chain| MirSettings { chain, light_cdf: c.light_cdf, ..MirSettings::mtmh() };
+        let mir = |chain| MirSettings { chain, light_cdf: c.light_cdf, chains: c.chains.max(1), ..MirSettings::mtmh() };
         let chain = if self == VplSamplerArg::Mh { Chain::Mh } else { Chain::Mtmh(c.candidates.max(1)) };
         match (self, c.kernel) {
             (VplSamplerArg::Sir, _) => Box::new(crate::vpl::sir::Sir::new(c.max_depth)),
@@ -311,6 +313,10 @@ pub struct RenderArgs {
     /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
     #[arg(long)]
     pub light_cdf: bool,
+    /// mir: independent Metropolis chains run side by side, each giving its share of the VPL
+    /// locations (the count, not the thread count, fixes the image).
+    #[arg(long, default_value_t = 2)]
+    pub chains: usize,
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
@@ -422,6 +428,9 @@ impl RenderArgs {
         if self.candidates == 0 || self.candidates > 1000 {
             return Err(OptionsError(format!("--candidates {} is outside 1…1000", self.candidates)));
         }
+        if self.chains == 0 || self.chains > 64 {
+            return Err(OptionsError(format!("--chains {} is outside 1…64", self.chains)));
+        }
         if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
             return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
         }
@@ -456,6 +465,7 @@ impl RenderArgs {
                 kernel: self.kernel,
                 candidates: self.candidates,
                 light_cdf: self.light_cdf,
+                chains: self.chains,
             },
             frame: crate::frame::FrameSettings { max_specular: 8, ..self.gather.frame_settings() },
         })

@@ -159,6 +159,7 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         (vec!["render", "--threads", "0"], "--threads"),
         (vec!["render", "--mode", "ir", "--vpls", "0"], "--vpls"),
         (vec!["render", "--mode", "ir", "--clamp", "-1"], "--clamp"),
+        (vec!["render", "--chains", "0"], "--chains"),
         (vec!["render", "--fov-y", "200"], "field of view"),
         (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
     ] {

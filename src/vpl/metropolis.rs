@@ -4,14 +4,18 @@
 //!
 //! Per call of [`Mir::sample`]:
 //! 1. **P_c** (§5.1): N independent bidirectional samples of the kernel's own generator; their
-//!    mean weight estimates P_c, and the chain's first state is drawn among them ∝ weight
-//!    (removing start-up bias, Veach & Guibas 1997). When the camera has not jumped, the chain
+//!    mean weight estimates P_c, and each chain's first state is drawn among them ∝ weight
+//!    (removing start-up bias, Veach & Guibas 1997). When the camera has not jumped, a chain
 //!    continues from its last state instead (temporal coherence, DESIGN §3.6).
-//! 2. **Chain** (§5.2, §6.1): MH, or MTMH with p candidates and λ(u, v) = [g(u|v) g(v|u)]⁻¹, so
-//!    that w(u, v) = π(v) / g(v|u).
-//! 3. **Geographical VPLs** (§5.3): consecutive states with the same x_v add to its count k;
-//!    the chain runs until m distinct locations exist (or a documented step bound is hit);
-//!    n = number of states.
+//! 2. **Chains** (§5.2, §6.1): MH, or MTMH with p candidates and λ(u, v) = [g(u|v) g(v|u)]⁻¹, so
+//!    that w(u, v) = π(v) / g(v|u). [`MirSettings::chains`] independent chains (2 by default,
+//!    one per core here) run in parallel, each for its share of the m locations; their states
+//!    all sample the same target, so pooled they are one sample of it (the paper runs one chain;
+//!    one serial chain left a core idle for half of an interactive frame's VPL stage).
+//! 3. **Geographical VPLs** (§5.3): consecutive states of a chain with the same x_v add to its
+//!    count k; a chain runs for a state count fixed from earlier runs' move rate (or until its
+//!    share of locations exists, or a documented step bound is hit); n = number of states of
+//!    all chains.
 //! 4. **Normalisation** (§5.4, §5.5): location i brings P_i = k_i P_c / n. Its camera response
 //!    P'_i is estimated with K camera probes (first surfaces of stratified camera rays) for the
 //!    VPL's own radiance L̂_i (the light sub-path's), and the VPL's radiance becomes
