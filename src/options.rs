@@ -143,7 +143,13 @@ pub struct SamplerConfig {
 
 impl Default for SamplerConfig {
     fn default() -> Self {
-        SamplerConfig { max_depth: 64, kernel: KernelArg::Bidir, candidates: 10, light_cdf: false, chains: 2 }
+        SamplerConfig {
+            max_depth: 64,
+            kernel: KernelArg::Bidir,
+            candidates: 10,
+            light_cdf: false,
+            chains: crate::vpl::metropolis::MirSettings::mtmh().chains,
+        }
     }
 }
 
@@ -315,7 +321,7 @@ pub struct RenderArgs {
     pub light_cdf: bool,
     /// mir: independent Metropolis chains run side by side, each giving its share of the VPL
     /// locations (the count, not the thread count, fixes the image).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().chains)]
     pub chains: usize,
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]

@@ -151,6 +151,29 @@ pub struct ChainReport {
 /// is biased but bounded, and reported (like the G clamp): [`ChainReport::capped_share`].
 pub const RADIANCE_CAP: f64 = 200.0;
 
+/// Caps the radiance (luminance) of `vpls` at [`RADIANCE_CAP`] × their median; returns how many
+/// were capped and the share of the total luminance removed.
+fn cap_radiance<'a>(vpls: impl Iterator<Item = &'a mut Vpl>) -> (usize, f64) {
+    let mut vpls: Vec<&mut Vpl> = vpls.collect();
+    let mut lum: Vec<f64> = vpls.iter().map(|v| luminance(v.radiance) as f64).collect();
+    if lum.is_empty() {
+        return (0, 0.0);
+    }
+    let total: f64 = lum.iter().sum();
+    let mid = lum.len() / 2;
+    let cap = RADIANCE_CAP * *lum.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let (mut capped, mut removed) = (0, 0.0);
+    for v in vpls.iter_mut() {
+        let y = luminance(v.radiance) as f64;
+        if y > cap {
+            v.radiance *= (cap / y) as f32;
+            removed += y - cap;
+            capped += 1;
+        }
+    }
+    (capped, if total > 0.0 { removed / total } else { 0.0 })
+}
+
 /// The MIR VPL sampler over a mutation kernel.
 pub struct Mir<K: MutationKernel> {
     /// The mutation kernel.
@@ -574,24 +597,8 @@ impl<K: MutationKernel> Mir<K> {
         for b in probe_sets.iter().filter_map(OnceLock::get) {
             rays += b.stats;
         }
-        // The radiance cap (see `RADIANCE_CAP`).
-        let mut lum: Vec<f64> = scaled.iter().filter_map(|(v, _)| v.map(|v| luminance(v.radiance) as f64)).collect();
         let mut scaled = scaled;
-        if !lum.is_empty() {
-            let total: f64 = lum.iter().sum();
-            let mid = lum.len() / 2;
-            let cap = RADIANCE_CAP * *lum.select_nth_unstable_by(mid, f64::total_cmp).1;
-            let mut removed = 0.0;
-            for v in scaled.iter_mut().filter_map(|(v, _)| v.as_mut()) {
-                let y = luminance(v.radiance) as f64;
-                if y > cap {
-                    v.radiance *= (cap / y) as f32;
-                    removed += y - cap;
-                    report.capped += 1;
-                }
-            }
-            report.capped_share = if total > 0.0 { removed / total } else { 0.0 };
-        }
+        (report.capped, report.capped_share) = cap_radiance(scaled.iter_mut().filter_map(|(v, _)| v.as_mut()));
         let mut set = VplSet::default();
         for ((v, st), (s, k)) in scaled.into_iter().zip(&locations) {
             rays += st;
@@ -652,5 +659,45 @@ impl<K: MutationKernel> VplSampler for Mir<K> {
             self.jumped = true;
             self.cdf = None;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+
+    fn vpl(lum: f32) -> Vpl {
+        Vpl {
+            position: Vec3::ZERO,
+            normal: Vec3::Y,
+            radiance: Vec3::splat(lum),
+            lobe: None,
+            count: 1,
+            flags: 0,
+            length: 1,
+            group: 0,
+        }
+    }
+
+    #[test]
+    fn radiance_cap_cuts_only_outliers_and_reports_what_it_removed() {
+        // 99 VPLs spread over 1…50 (within the cap) are left alone.
+        let mut typical: Vec<Vpl> = (0..99).map(|i| vpl(1.0 + (i % 50) as f32)).collect();
+        let before: Vec<Vec3> = typical.iter().map(|v| v.radiance).collect();
+        assert_eq!(cap_radiance(typical.iter_mut()), (0, 0.0));
+        assert!(typical.iter().zip(&before).all(|(v, b)| v.radiance == *b));
+        // One VPL at 10¹⁰ × the median (as a P′ from 14 probe hits gave) is brought down to the
+        // cap, keeping its colour, and nearly all of the luminance is reported as removed.
+        let mut set: Vec<Vpl> = (0..99).map(|_| vpl(1.0)).collect();
+        set.push(Vpl { radiance: Vec3::new(2e10, 1e10, 0.5e10), ..vpl(0.0) });
+        let (n, share) = cap_radiance(set.iter_mut());
+        assert_eq!(n, 1);
+        let outlier = set[99].radiance;
+        assert!((luminance(outlier) as f64 - RADIANCE_CAP).abs() < 1e-3 * RADIANCE_CAP, "{outlier:?}");
+        assert!((outlier.x / outlier.y - 2.0).abs() < 1e-4 && (outlier.y / outlier.z - 2.0).abs() < 1e-4);
+        assert!(share > 0.999_999 && share < 1.0, "{share}");
+        assert!(set[..99].iter().all(|v| v.radiance == Vec3::ONE));
     }
 }
