@@ -88,15 +88,15 @@ const MAX_SLOPE_SPAN: f32 = 0.2;
 /// Conservative: planes are widened by the rounding of their construction and by the spread of
 /// the lanes' apexes.
 struct PlaneFrustum {
-    apex: [F8; 3],
+    apex: [f32; 3],
     /// Side planes `n·(p − apex) ≥ −eps`: per plane, per axis the `bounds` row of the box vertex
     /// farthest along n, and n.
     rows: [[usize; 3]; 4],
-    normals: [[F8; 3]; 4],
-    eps: [F8; 4],
+    normals: [[f32; 3]; 4],
+    eps: [f32; 4],
     /// Central axis: rows of the vertex nearest along c, c itself.
     c_rows: [usize; 3],
-    c: [F8; 3],
+    c: [f32; 3],
     /// Margin of the distance along c (apex spread and rounding).
     c_eps: f32,
     /// The lanes do not start at one apex (shadow rays traced backwards from their end point,
@@ -140,12 +140,12 @@ impl PlaneFrustum {
         let margin = spread + 4.0;
         let row = |n: Vec3, axis: usize| 2 * axis + (n[axis] >= 0.0) as usize;
         Some(PlaneFrustum {
-            apex: [F8::splat(apex.x), F8::splat(apex.y), F8::splat(apex.z)],
+            apex: apex.to_array(),
             rows: normals.map(|n| [row(n, 0), row(n, 1), row(n, 2)]),
-            normals: normals.map(|n| [F8::splat(n.x), F8::splat(n.y), F8::splat(n.z)]),
-            eps: normals.map(|n| F8::splat(-margin * n.length())),
+            normals: normals.map(|n| n.to_array()),
+            eps: normals.map(|n| -margin * n.length()),
             c_rows: [0, 1, 2].map(|axis| 2 * axis + (c[axis] < 0.0) as usize),
-            c: [F8::splat(c.x), F8::splat(c.y), F8::splat(c.z)],
+            c: c.to_array(),
             c_eps: margin,
             lane_tests: spread > 0.0,
         })
@@ -156,18 +156,19 @@ impl Cull for PlaneFrustum {
     #[inline(always)]
     fn test(&self, bounds: &[[f32; 8]; 6], t_cull: f32) -> (F8, u32) {
         // Box corners relative to the apex: rows 2·axis (min) and 2·axis + 1 (max).
-        let rel: [F8; 6] = std::array::from_fn(|row| F8::from_array(bounds[row]) - self.apex[row / 2]);
+        let rel: [F8; 6] = std::array::from_fn(|row| F8::from_array(bounds[row]) - F8::splat(self.apex[row / 2]));
         let mut inside = F8::splat(0.0).le(F8::splat(0.0));
         for k in 0..4 {
             let [rx, ry, rz] = self.rows[k];
-            let [nx, ny, nz] = self.normals[k];
+            let [nx, ny, nz] = self.normals[k].map(F8::splat);
             let dist = rel[rx] * nx + rel[ry] * ny + rel[rz] * nz;
-            inside = inside.and(dist.ge(self.eps[k]));
+            inside = inside.and(dist.ge(F8::splat(self.eps[k])));
         }
         let [cx, cy, cz] = self.c_rows;
-        let along = rel[cx] * self.c[0] + rel[cy] * self.c[1] + rel[cz] * self.c[2] - F8::splat(self.c_eps);
+        let c = self.c.map(F8::splat);
+        let along = rel[cx] * c[0] + rel[cy] * c[1] + rel[cz] * c[2] - F8::splat(self.c_eps);
         // Boxes entirely behind the apex: their farthest corner along c is behind it.
-        let back = rel[cx ^ 1] * self.c[0] + rel[cy ^ 1] * self.c[1] + rel[cz ^ 1] * self.c[2];
+        let back = rel[cx ^ 1] * c[0] + rel[cy ^ 1] * c[1] + rel[cz ^ 1] * c[2];
         let t_near = along.vmax(F8::splat(0.0));
         let hit = inside.and(back.ge(F8::splat(-self.c_eps))).and(t_near.le(F8::splat(t_cull)));
         (t_near, hit.bitmask())
