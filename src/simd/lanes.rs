@@ -12,12 +12,16 @@
 use std::fmt::Debug;
 use std::ops::{Add, Div, Mul, Sub};
 
-use wide::{f32x4, f32x8, u32x4, u32x8};
+use wide::{f32x4, f32x8, f32x16, u32x4, u32x8, u32x16};
 
 /// Four `f32` lanes (SSE).
 pub type F4 = f32x4;
 /// Eight `f32` lanes (AVX).
 pub type F8 = f32x8;
+
+/// Sixteen `f32` lanes (one AVX-512 register; two AVX registers elsewhere), for image-space
+/// kernels such as the discontinuity buffer.
+pub type F16 = f32x16;
 
 /// Width of [`F4`].
 pub const LANES_4: usize = 4;
@@ -224,6 +228,7 @@ macro_rules! impl_lanes {
 
 impl_lanes!(f32x4, u32x4, 4);
 impl_lanes!(f32x8, u32x8, 8);
+impl_lanes!(f32x16, u32x16, 16);
 
 #[cfg(test)]
 mod tests {

@@ -10,7 +10,7 @@ pub mod lanes;
 pub mod packet;
 pub mod vec3x;
 
-pub use lanes::{F4, F8, LANES_4, LANES_8, Lanes};
+pub use lanes::{F4, F8, F16, LANES_4, LANES_8, Lanes};
 pub use packet::{LaneRay, RayPacket};
 pub use vec3x::Vec3x;
 
