@@ -222,9 +222,14 @@ fn occlusion_with_a_shadow_cache_matches_plain_occlusion() {
         }
         let targets: Vec<Vec3> = (0..64).map(|_| random_surface_point(&case.scene, &mut rng).p).collect();
         let mut hints = vec![mirage::accel::single::NO_OCCLUDER; targets.len()];
+        // A second cache for the lanes of packets set up at once (one receiver, four targets,
+        // as the gather traces them).
+        let mut lane_hints = hints.clone();
         let (mut rays_traced, mut blocked) = (0, 0);
         for (k, r) in receivers.iter().enumerate() {
-            for j in [k % 64, (k * 7 + 3) % 64, (k / 3) % 64, (k * 13) % 64] {
+            let js = [k % 64, (k * 7 + 3) % 64, (k / 3) % 64, (k * 13) % 64];
+            let mut rays = [None; 8];
+            for (lane, &j) in js.iter().enumerate() {
                 let target = targets[j];
                 let origin = offset_origin(r, &case.scene.mesh.corners(r.tri), target - r.p);
                 let plain = case.accel.occluded(origin, target - origin, SHADOW_T_MAX);
@@ -232,7 +237,21 @@ fn occlusion_with_a_shadow_cache_matches_plain_occlusion() {
                 assert_eq!(plain, cached, "{}: receiver {k} ({:?}) to target {j}", case.name, r.p);
                 rays_traced += 1;
                 blocked += plain as usize;
+                // Lanes 0, 2, 4, 6: idle lanes in between.
+                rays[2 * lane] = Some((LaneRay::new(origin, target - origin, SHADOW_T_MAX), plain));
             }
+            let packet = RayPacket::<F8>::from_fn(|i| rays[i].map(|(ray, _)| ray));
+            let mut packet_hints = [mirage::accel::single::NO_OCCLUDER; 8];
+            for (lane, &j) in js.iter().enumerate() {
+                packet_hints[2 * lane] = lane_hints[j];
+            }
+            let lanes = case.accel.occluded_lanes_cached(&packet, &mut packet_hints);
+            for (lane, &j) in js.iter().enumerate() {
+                lane_hints[j] = packet_hints[2 * lane];
+                let plain = rays[2 * lane].unwrap().1;
+                assert_eq!(lanes >> (2 * lane) & 1 != 0, plain, "{}: lanes set up at once, receiver {k}", case.name);
+            }
+            assert_eq!(lanes & 0b1010_1010, 0, "{}: idle lanes are never blocked", case.name);
         }
         assert!(rays_traced >= RAYS_PER_KIND, "{}: {rays_traced} rays", case.name);
         // Both answers occur, so the cache is exercised.

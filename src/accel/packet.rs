@@ -23,7 +23,9 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::single::{CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded, prefetch_ref};
+use super::single::{
+    CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded, occluded_from_parts, prefetch_ref,
+};
 use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
 use super::{Accel, Hit};
@@ -382,6 +384,27 @@ impl Accel {
                 occluded_frustum(&self.wide, &p, &f, length, &mut Vec::with_capacity(self.wide.stack_need()))
             }
         }
+    }
+
+    /// Occlusion of the rays of `packet` traced one by one, after setting them all up at once
+    /// (canonical frame, shear and reciprocal directions on all lanes together): bit i set when
+    /// lane i is blocked, exactly [`Accel::occluded_cached`] per lane with `hints[i]` as lane
+    /// i's shadow cache. For rays that go different ways (one pixel towards several VPLs), where
+    /// a packet traversal would not pay.
+    pub fn occluded_lanes_cached<F: Lanes>(&self, packet: &RayPacket<F>, hints: &mut [u32]) -> u32 {
+        let p = CanonicalPacket::new(self, packet);
+        let mut blocked = 0;
+        let mut m = p.active;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let origin = p.origin.lane(i);
+            let rdir = || p.rdir.lane(i).to_array();
+            if occluded_from_parts(&self.wide, p.shear.lane(i, origin), origin, p.t_max.lane(i), &mut hints[i], rdir) {
+                blocked |= 1 << i;
+            }
+        }
+        blocked
     }
 
     #[doc(hidden)]

@@ -227,7 +227,12 @@ struct BoxRay {
 impl BoxRay {
     #[inline(always)]
     fn new(origin: Vec3, dir: Vec3) -> Self {
-        let r = [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z];
+        Self::from_rdir(origin, [1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z])
+    }
+
+    /// From the reciprocal direction `r` (`1 / dir`, as [`BoxRay::new`] computes it).
+    #[inline(always)]
+    fn from_rdir(origin: Vec3, r: [f32; 3]) -> Self {
         BoxRay {
             o: [F8::splat(origin.x), F8::splat(origin.y), F8::splat(origin.z)],
             rdir: r.map(F8::splat),
@@ -376,49 +381,79 @@ pub const NO_OCCLUDER: u32 = u32::MAX;
 /// [`NO_OCCLUDER`]) is tested first, and the occluding leaf found by a traversal is stored there.
 #[inline]
 pub(crate) fn occluded(bvh: &WideBvh<8>, ray: &CanonicalRay, hint: &mut u32) -> bool {
+    occluded_from_parts(bvh, ShearedRay::new(ray.origin, ray.dir), ray.origin, ray.t_max, hint, || {
+        [1.0 / ray.dir.x, 1.0 / ray.dir.y, 1.0 / ray.dir.z]
+    })
+}
+
+/// [`occluded`] for a ray given by its sheared form and (computed only when the hinted leaf
+/// does not block it) its reciprocal direction — one lane of a packet set up all at once.
+#[inline(always)]
+pub(crate) fn occluded_from_parts(
+    bvh: &WideBvh<8>,
+    sheared: ShearedRay,
+    origin: Vec3,
+    t_max: f32,
+    hint: &mut u32,
+    rdir: impl FnOnce() -> [f32; 3],
+) -> bool {
+    if *hint != NO_OCCLUDER && leaf_blocks(bvh, &sheared, *hint, t_max) {
+        return true;
+    }
+    let boxes = BoxRay::from_rdir(origin, rdir());
     let need = bvh.stack_need();
-    if need <= 16 {
-        occluded_with(bvh, ray, hint, &mut ArrayStack::<16>::new())
+    let leaf = if need <= 16 {
+        occluder_with(bvh, &sheared, &boxes, t_max, &mut ArrayStack::<16>::new())
     } else if need <= 48 {
-        occluded_with(bvh, ray, hint, &mut ArrayStack::<48>::new())
+        occluder_with(bvh, &sheared, &boxes, t_max, &mut ArrayStack::<48>::new())
     } else if need <= STACK {
-        occluded_with(bvh, ray, hint, &mut ArrayStack::<STACK>::new())
+        occluder_with(bvh, &sheared, &boxes, t_max, &mut ArrayStack::<STACK>::new())
     } else {
-        occluded_with(bvh, ray, hint, &mut Vec::with_capacity(bvh.stack_need()))
+        occluder_with(bvh, &sheared, &boxes, t_max, &mut Vec::with_capacity(bvh.stack_need()))
+    };
+    match leaf {
+        Some(r) => {
+            *hint = r;
+            true
+        }
+        None => false,
     }
 }
 
+/// True when a triangle of leaf `r` blocks the ray in (0, t_max).
 #[inline(always)]
-fn occluded_with<S: Stack>(bvh: &WideBvh<8>, ray: &CanonicalRay, hint: &mut u32, stack: &mut S) -> bool {
-    let sheared = ShearedRay::new(ray.origin, ray.dir);
-    let t_max = ray.t_max;
-    let blocks = |r: u32| {
-        let (b, count) = leaf_parts(r);
-        let h = intersect_block(&sheared, &bvh.blocks[b], count, t_max);
-        h.mask.and(h.t.lt(F4::splat(t_max))).bitmask() != 0
-    };
-    if *hint != NO_OCCLUDER && blocks(*hint) {
-        return true;
-    }
-    let box_ray = BoxRay::new(ray.origin, ray.dir);
+fn leaf_blocks(bvh: &WideBvh<8>, sheared: &ShearedRay, r: u32, t_max: f32) -> bool {
+    let (b, count) = leaf_parts(r);
+    let h = intersect_block(sheared, &bvh.blocks[b], count, t_max);
+    h.mask.and(h.t.lt(F4::splat(t_max))).bitmask() != 0
+}
+
+/// A leaf that blocks the ray in (0, t_max), if any.
+#[inline(always)]
+fn occluder_with<S: Stack>(
+    bvh: &WideBvh<8>,
+    sheared: &ShearedRay,
+    boxes: &BoxRay,
+    t_max: f32,
+    stack: &mut S,
+) -> Option<u32> {
     let t_cull = cull_distance(t_max);
     let mut cur = Some(bvh.root);
     loop {
         while let Some(r) = cur {
             if r & LEAF_BIT == 0 {
                 let node = &bvh.nodes[r as usize];
-                let (t_near, mask) = box_ray.test(&node.bounds, t_cull);
+                let (t_near, mask) = boxes.test(&node.bounds, t_cull);
                 cur = descend(bvh, stack, &node.child, t_near, mask, false);
             } else {
-                if blocks(r) {
-                    *hint = r;
-                    return true;
+                if leaf_blocks(bvh, sheared, r, t_max) {
+                    return Some(r);
                 }
                 cur = None;
             }
         }
         match stack.pop() {
-            None => return false,
+            None => return None,
             Some((r, _)) => cur = Some(r),
         }
     }

@@ -342,6 +342,25 @@ impl<F: Lanes> ShearPacket<F> {
         ShearPacket { o, sx: dx / dz, sy: dy / dz, sz: F::splat(1.0) / dz, axes }
     }
 
+    /// Lane `i` as a single sheared ray from `origin` (that lane's origin): exactly the
+    /// [`ShearedRay::new`] of the lane, without redoing its divisions.
+    #[inline]
+    pub fn lane(&self, i: usize, origin: Vec3) -> ShearedRay {
+        let [kx, ky, kz] = match &self.axes {
+            Axes::Uniform(k) => *k,
+            Axes::Mixed(sel) => [0, 1, 2].map(|j| {
+                if sel[j][0].lane_bits(i) != 0 {
+                    0
+                } else if sel[j][1].lane_bits(i) != 0 {
+                    1
+                } else {
+                    2
+                }
+            }),
+        };
+        ShearedRay { origin: origin.into(), kz, kx, ky, sx: self.sx.lane(i), sy: self.sy.lane(i), sz: self.sz.lane(i) }
+    }
+
     /// A corner relative to each lane's origin, in the lane's permuted axes.
     #[inline(always)]
     fn relative(&self, p: Vec3A) -> [F; 3] {

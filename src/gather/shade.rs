@@ -14,7 +14,7 @@ use crate::accel::single::NO_OCCLUDER;
 use crate::bsdf::BsdfKind;
 use crate::color::luminance;
 use crate::scene::Scene;
-use crate::simd::{F8, LaneRay, Lanes, RayPacket};
+use crate::simd::{F4, F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
 #[cfg(doc)]
 use crate::vpl::transfer::shadow_segment;
@@ -357,18 +357,41 @@ pub fn gather(
                             }
                             for ch in &chunks[inter.subset_of(x, y)] {
                                 let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
+                                if lc.lanes == 0 {
+                                    continue;
+                                }
+                                // The chunk's shadow rays, set up together and traced one by one.
+                                let vpl = |j: usize| ch.index[j] as usize;
+                                let ray = |j: usize| {
+                                    (lc.lanes >> j & 1 != 0).then(|| {
+                                        let target = vpls.position[vpl(j)];
+                                        let o = pt.origin_towards(target);
+                                        LaneRay::new(o, target - o, SHADOW_T_MAX)
+                                    })
+                                };
+                                let mut hints = [NO_OCCLUDER; 8];
                                 let mut m = lc.lanes;
                                 while m != 0 {
                                     let j = m.trailing_zeros() as usize;
                                     m &= m - 1;
-                                    let target = vpls.position[ch.index[j] as usize];
-                                    let o = pt.origin_towards(target);
-                                    st.shadow += 1;
-                                    let hint = &mut occluders[ch.index[j] as usize];
-                                    if !accel.occluded_cached(o, target - o, SHADOW_T_MAX, hint) {
+                                    hints[j] = occluders[vpl(j)];
+                                }
+                                // Up to four rays (a subset of 4 VPLs per pixel): 4 lanes.
+                                let blocked = if lc.lanes < 16 {
+                                    accel.occluded_lanes_cached(&RayPacket::<F4>::from_fn(ray), &mut hints)
+                                } else {
+                                    accel.occluded_lanes_cached(&RayPacket::<F8>::from_fn(ray), &mut hints)
+                                };
+                                st.shadow += lc.lanes.count_ones() as u64;
+                                let mut m = lc.lanes;
+                                while m != 0 {
+                                    let j = m.trailing_zeros() as usize;
+                                    m &= m - 1;
+                                    occluders[vpl(j)] = hints[j];
+                                    if blocked >> j & 1 == 0 {
                                         let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
                                         let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
-                                        acc.add((x, c, full, o, target - o));
+                                        acc.add((x, c, full, Vec3::ZERO, Vec3::ZERO));
                                     }
                                 }
                             }
