@@ -280,6 +280,18 @@ fn descend<S: Stack>(
     match mask.count_ones() {
         0 => None,
         1 => Some(child[mask.trailing_zeros() as usize]),
+        2 => {
+            // The common case of two children: one on the stack, no sort. Any-hit queries take
+            // the higher slot first, as the general case pops it (the visiting order of
+            // occlusion rays that certainly hit matters: nearest first took Igea's bounce rays
+            // from 43 to 11 Mrays/s, lower slot first to 11 as well; see the bench record).
+            let t = t_near.to_array();
+            let (i, j) = (mask.trailing_zeros() as usize, 31 - mask.leading_zeros() as usize);
+            let (near, far) = if !sort || t[j] < t[i] { (j, i) } else { (i, j) };
+            prefetch_ref(bvh, child[far]);
+            stack.push(child[far], t[far]);
+            Some(child[near])
+        }
         n => {
             let t = t_near.to_array();
             let mut m = mask;
