@@ -240,18 +240,39 @@ fn occlusion_with_a_shadow_cache_matches_plain_occlusion() {
                 // Lanes 0, 2, 4, 6: idle lanes in between.
                 rays[2 * lane] = Some((LaneRay::new(origin, target - origin, SHADOW_T_MAX), plain));
             }
-            let packet = RayPacket::<F8>::from_fn(|i| rays[i].map(|(ray, _)| ray));
+            // Every lane starts from its target's cached leaf; each must end as occluded_cached
+            // ends from that leaf: same answer, same leaf left in the cache. Alternately 8 lanes
+            // with idle lanes between (lanes 0, 2, 4, 6) and 4 full lanes, as the gather uses.
+            let start: Vec<u32> = js.iter().map(|&j| lane_hints[j]).collect();
+            let expected: Vec<(bool, u32)> = js
+                .iter()
+                .enumerate()
+                .map(|(lane, _)| {
+                    let (ray, _) = rays[2 * lane].unwrap();
+                    let mut h = start[lane];
+                    (case.accel.occluded_cached(ray.origin, ray.dir, ray.t_max, &mut h), h)
+                })
+                .collect();
             let mut packet_hints = [mirage::accel::single::NO_OCCLUDER; 8];
+            let (lanes, stride) = if k % 2 == 0 {
+                for lane in 0..4 {
+                    packet_hints[2 * lane] = start[lane];
+                }
+                let packet = RayPacket::<F8>::from_fn(|i| rays[i].map(|(ray, _)| ray));
+                let lanes = case.accel.occluded_lanes_cached(&packet, &mut packet_hints);
+                assert_eq!(lanes & 0b1010_1010, 0, "{}: idle lanes are never blocked", case.name);
+                (lanes, 2)
+            } else {
+                packet_hints[..4].copy_from_slice(&start);
+                let packet = RayPacket::<F4>::from_fn(|i| rays[2 * i].map(|(ray, _)| ray));
+                (case.accel.occluded_lanes_cached(&packet, &mut packet_hints), 1)
+            };
             for (lane, &j) in js.iter().enumerate() {
-                packet_hints[2 * lane] = lane_hints[j];
+                let got = (lanes >> (stride * lane) & 1 != 0, packet_hints[stride * lane]);
+                assert_eq!(got, expected[lane], "{}: lanes set up at once, receiver {k}, lane {lane}", case.name);
+                assert_eq!(got.0, rays[2 * lane].unwrap().1, "{}: receiver {k}, lane {lane}", case.name);
+                lane_hints[j] = got.1;
             }
-            let lanes = case.accel.occluded_lanes_cached(&packet, &mut packet_hints);
-            for (lane, &j) in js.iter().enumerate() {
-                lane_hints[j] = packet_hints[2 * lane];
-                let plain = rays[2 * lane].unwrap().1;
-                assert_eq!(lanes >> (2 * lane) & 1 != 0, plain, "{}: lanes set up at once, receiver {k}", case.name);
-            }
-            assert_eq!(lanes & 0b1010_1010, 0, "{}: idle lanes are never blocked", case.name);
         }
         assert!(rays_traced >= RAYS_PER_KIND, "{}: {rays_traced} rays", case.name);
         // Both answers occur, so the cache is exercised.

@@ -28,6 +28,8 @@ use super::single::{
 };
 use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
+
+mod lanewise;
 use super::{Accel, Hit};
 use crate::simd::{F8, Lanes, RayPacket, Vec3x};
 
@@ -278,85 +280,6 @@ impl<F: Lanes> CanonicalPacket<F> {
 /// Capacity of the array stack of packet traversals (trees needing more use a `Vec`).
 const STACK: usize = 128;
 
-/// A packet traversal stack of (reference, the lanes' entry distances).
-trait PacketStack<F: Lanes> {
-    fn push(&mut self, r: u32, t: F);
-    fn pop(&mut self) -> Option<(u32, F)>;
-}
-
-/// A stack in fixed arrays (no allocation).
-struct ArrayStack<F: Lanes, const N: usize> {
-    refs: [u32; N],
-    t: [F; N],
-    len: usize,
-}
-
-impl<F: Lanes, const N: usize> ArrayStack<F, N> {
-    #[inline(always)]
-    fn new() -> Self {
-        ArrayStack { refs: [0; N], t: [F::splat(0.0); N], len: 0 }
-    }
-}
-
-impl<F: Lanes, const N: usize> PacketStack<F> for ArrayStack<F, N> {
-    #[inline(always)]
-    fn push(&mut self, r: u32, t: F) {
-        self.refs[self.len] = r;
-        self.t[self.len] = t;
-        self.len += 1;
-    }
-    #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, F)> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        Some((self.refs[self.len], self.t[self.len]))
-    }
-}
-
-impl<F: Lanes> PacketStack<F> for Vec<(u32, F)> {
-    #[inline(always)]
-    fn push(&mut self, r: u32, t: F) {
-        Vec::push(self, (r, t));
-    }
-    #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, F)> {
-        Vec::pop(self)
-    }
-}
-
-/// Visits the children of `node` hit by some lane of `lanes` (culling distance per lane),
-/// pushing them so that the nearest along the packet's octant is on top.
-#[inline(always)]
-fn push_children<F: Lanes, const W: usize>(
-    p: &CanonicalPacket<F>,
-    node: &Node<W>,
-    t_cull: F,
-    lanes: F,
-    stack: &mut impl PacketStack<F>,
-) {
-    let order = node.order[p.octant()];
-    let mut hits = [(0u32, F::splat(0.0)); 8];
-    let mut n = 0;
-    for k in 0..W {
-        let slot = (order >> (4 * k)) as usize & 15;
-        let c = node.child[slot];
-        if c == EMPTY {
-            break;
-        }
-        let (t_near, m) = p.test_child(node, slot, t_cull);
-        let m = m.and(lanes);
-        if m.bitmask() != 0 {
-            hits[n] = (c, m.select(t_near, F::splat(f32::INFINITY)));
-            n += 1;
-        }
-    }
-    for &(c, t) in hits[..n].iter().rev() {
-        stack.push(c, t);
-    }
-}
-
 impl Accel {
     /// Closest hits of the rays of `packet` (world space, as [`Accel::intersect`] per lane).
     pub fn intersect_packet<F: Lanes>(&self, packet: &RayPacket<F>) -> PacketHits<F> {
@@ -391,7 +314,9 @@ impl Accel {
     /// lane i is blocked, exactly [`Accel::occluded_cached`] per lane with `hints[i]` as lane
     /// i's shadow cache. For rays that go different ways (one pixel towards several VPLs), where
     /// a packet traversal would not pay.
+    /// `hints` needs an entry for every lane up to the highest active one.
     pub fn occluded_lanes_cached<F: Lanes>(&self, packet: &RayPacket<F>, hints: &mut [u32]) -> u32 {
+        debug_assert!(hints.len() >= 32 - packet.active.leading_zeros() as usize);
         let p = CanonicalPacket::new(self, packet);
         let mut blocked = 0;
         let mut m = p.active;
@@ -405,21 +330,6 @@ impl Accel {
             }
         }
         blocked
-    }
-
-    #[doc(hidden)]
-    /// The lane-wise packet traversal (each child against all lanes): kept for measurements.
-    pub fn intersect_packet_lanewise<F: Lanes>(&self, packet: &RayPacket<F>) -> PacketHits<F> {
-        let p = CanonicalPacket::new(self, packet);
-        let (hit, t, tri_bits, b1, b2) = closest_packet(&self.wide, &p, &mut ArrayStack::<F, STACK>::new());
-        PacketHits { hit, t: t * p.to_param, tri_bits, b1, b2 }
-    }
-
-    #[doc(hidden)]
-    /// The lane-wise packet traversal (each child against all lanes): kept for measurements.
-    pub fn occluded_packet_lanewise<F: Lanes>(&self, packet: &RayPacket<F>) -> u32 {
-        let p = CanonicalPacket::new(self, packet);
-        occluded_packet(&self.wide, &p, &mut ArrayStack::<F, STACK>::new())
     }
 }
 
@@ -526,8 +436,10 @@ impl Stack3 for Vec<(u32, f32, u32)> {
     }
 }
 
-/// Frustum test of the children of `node`; leaf children also get the exact per-lane test
-/// (their lanes). Pushes the hit children far to near and returns the nearest, or None.
+/// Frustum test of the children of `node` for the lanes `alive` (those that entered it); leaf
+/// children, and every child when [`Cull::lane_tests`] says so, also get the exact per-lane
+/// test and keep only the lanes that pass it. Pushes the hit children far to near and returns
+/// the nearest, or None.
 #[inline(always)]
 fn descend_frustum<F: Lanes>(
     bvh: &WideBvh<8>,
@@ -622,7 +534,8 @@ impl<F: Lanes> Closest<F> {
     }
 }
 
-/// Closest hits of a coherent packet: frustum traversal, exact lane tests at leaves.
+/// Closest hits of a coherent packet: frustum traversal, exact lane tests at leaves (and at
+/// inner nodes for frusta without a common apex).
 #[inline(always)]
 fn closest_frustum<F: Lanes>(
     bvh: &WideBvh<8>,
@@ -664,7 +577,8 @@ fn closest_frustum<F: Lanes>(
     }
 }
 
-/// Occlusion of a coherent packet: frustum traversal, exact lane tests at leaves; blocked
+/// Occlusion of a coherent packet: frustum traversal, exact lane tests at leaves (and at inner
+/// nodes for frusta without a common apex); blocked
 /// lanes drop out and the traversal ends when all are blocked.
 #[inline(always)]
 fn occluded_frustum<F: Lanes>(
@@ -691,7 +605,7 @@ fn occluded_frustum<F: Lanes>(
             }
             let (b, count) = leaf_parts(r);
             let block = &bvh.blocks[b];
-            let mut lanes = lanes & alive;
+            let mut lanes = lanes;
             for k in 0..count {
                 if lanes == 0 {
                     break;
@@ -752,77 +666,4 @@ fn occluded_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> u32 {
     (0..F::LANES)
         .filter(|&i| p.active >> i & 1 != 0 && occluded(bvh, &p.ray(i), &mut NO_OCCLUDER.clone()))
         .fold(0, |m, i| m | 1 << i)
-}
-
-#[inline(always)]
-fn closest_packet<F: Lanes, const W: usize>(
-    bvh: &WideBvh<W>,
-    p: &CanonicalPacket<F>,
-    stack: &mut impl PacketStack<F>,
-) -> (u32, F, F, F, F) {
-    let inf = F::splat(f32::INFINITY);
-    let mut best = Closest { t: p.t_max, id: F::splat_bits(EMPTY), b1: F::splat(0.0), b2: F::splat(0.0) };
-    let mut found = F::splat(0.0).lt(F::splat(0.0));
-    if p.active != 0 {
-        stack.push(bvh.root, F::mask_from_bits(p.active).select(F::splat(0.0), inf));
-    }
-    while let Some((r, t_entry)) = stack.pop() {
-        let t_cull = best.t * F::splat(ROBUST) + F::splat(CULL_SLACK);
-        let lanes = t_entry.le(t_cull);
-        if lanes.bitmask() == 0 {
-            continue;
-        }
-        if r & LEAF_BIT == 0 {
-            push_children(p, &bvh.nodes[r as usize], t_cull, lanes, stack);
-            continue;
-        }
-        let (b, count) = leaf_parts(r);
-        let block = &bvh.blocks[b];
-        found = found.or(F::mask_from_bits(best.leaf(p, block, count, lanes)));
-    }
-    (found.bitmask(), best.t, best.id, best.b1, best.b2)
-}
-
-#[inline(always)]
-fn occluded_packet<F: Lanes, const W: usize>(
-    bvh: &WideBvh<W>,
-    p: &CanonicalPacket<F>,
-    stack: &mut impl PacketStack<F>,
-) -> u32 {
-    let inf = F::splat(f32::INFINITY);
-    let mut t_max = p.t_max;
-    let mut t_cull = t_max * F::splat(ROBUST) + F::splat(CULL_SLACK);
-    let mut blocked = 0u32;
-    if p.active != 0 {
-        stack.push(bvh.root, F::mask_from_bits(p.active).select(F::splat(0.0), inf));
-    }
-    while let Some((r, t_entry)) = stack.pop() {
-        let lanes = t_entry.le(t_cull);
-        if lanes.bitmask() == 0 {
-            continue;
-        }
-        if r & LEAF_BIT == 0 {
-            push_children(p, &bvh.nodes[r as usize], t_cull, lanes, stack);
-            continue;
-        }
-        let (b, count) = leaf_parts(r);
-        let block = &bvh.blocks[b];
-        let mut lanes = lanes;
-        for k in 0..count {
-            let corner = |c: usize| Vec3A::new(block.v[3 * c][k], block.v[3 * c + 1][k], block.v[3 * c + 2][k]);
-            let h = intersect_packet(&p.shear, corner(0), corner(1), corner(2), t_max, lanes);
-            let now = h.mask.and(h.t.lt(t_max));
-            let bits = now.bitmask();
-            if bits != 0 {
-                blocked |= bits;
-                if blocked == p.active {
-                    return blocked;
-                }
-                t_max = now.select(F::splat(f32::NEG_INFINITY), t_max);
-                t_cull = now.select(F::splat(f32::NEG_INFINITY), t_cull);
-                lanes = lanes.and_not(now);
-            }
-        }
-    }
-    blocked
 }

@@ -1,5 +1,5 @@
-//! Lane types: `f32` vectors of 4 and 8 lanes behind one trait, so that every kernel is written
-//! once and instantiated for both widths.
+//! Lane types: `f32` vectors of 4, 8 and 16 lanes behind one trait, so that every kernel is
+//! written once and instantiated for the widths it needs.
 //!
 //! A *mask* has the same type as the values it selects (all bits of a lane set = true), as in
 //! `wide`; [`Lanes::bitmask`] turns it into one bit per lane. Comparisons are IEEE ordered
@@ -257,15 +257,18 @@ mod tests {
         assert_eq!(F::splat(-2.0).abs().lane(0), 2.0);
         let v = F::from_fn(|i| [1.0, f32::INFINITY, f32::NAN, -3.0][i % 4]);
         assert_eq!(v.finite().bitmask() & 0b1111, 0b1001);
-        assert_eq!(F::load(&[5.0; 9]).lane(F::LANES - 1), 5.0);
+        assert_eq!(F::load(&[5.0; 17]).lane(F::LANES - 1), 5.0);
         assert_eq!(a.vmin(b).lane(3), 2.0);
         assert_eq!(a.vmax(b).lane(0), 2.0);
     }
 
     #[test]
-    fn four_and_eight_lane_types_agree_with_scalar_semantics() {
+    fn four_eight_and_sixteen_lane_types_agree_with_scalar_semantics() {
         check::<F4>();
         check::<F8>();
+        check::<F16>();
+        // The discontinuity buffer relies on NaN failing every comparison in 16 lanes too.
+        assert_eq!(F16::splat(f32::NAN).ge(F16::splat(-1.0)).bitmask(), 0);
         let nan = F8::splat(f32::NAN);
         assert_eq!(nan.le(F8::splat(1.0)).bitmask(), 0);
         // NaN in `self` is ignored by vmin / vmax (the slab tests depend on it).
