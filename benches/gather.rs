@@ -4,7 +4,7 @@
 //! sharing a VPL, or sharing a pixel. Throughput is shadow
 //! rays. `cargo bench --bench gather`.
 
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use mirage::accel::Accel;
 use mirage::frame::{FrameSettings, gather_frame};
 use mirage::gather::Tracing;
@@ -15,7 +15,7 @@ use mirage::vpl::sir::Sir;
 
 fn bench_gather(c: &mut Criterion) {
     let mut group = c.benchmark_group("gather");
-    group.sample_size(10);
+    group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for (name, desc) in [("cornell", builtin::cornell()), ("sphere-field-1M", builtin::sphere_field(28))] {
         let settings = CameraSettings { width: Some(512), height: Some(512), ..Default::default() };
         let scene = Scene::from_desc(desc, &settings).unwrap();
