@@ -57,9 +57,14 @@ struct RowSums {
 }
 
 impl RowSums {
-    fn add(&mut self, (x, c, full, _, _): Pending) {
+    /// Adds the clamped contribution `c` (and the share `full − c` the clamp removed) to pixel x.
+    fn add_light(&mut self, x: u32, c: Vec3, full: Vec3) {
         self.sum[x as usize] += c;
         self.removed[x as usize] += full - c;
+    }
+
+    fn add(&mut self, (x, c, full, _, _): Pending) {
+        self.add_light(x, c, full);
     }
 
     /// Traces the pending shadow rays as one packet (a lone ray as a single ray).
@@ -391,7 +396,7 @@ pub fn gather(
                                     if blocked >> j & 1 == 0 {
                                         let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
                                         let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
-                                        acc.add((x, c, full, Vec3::ZERO, Vec3::ZERO));
+                                        acc.add_light(x, c, full);
                                     }
                                 }
                             }
