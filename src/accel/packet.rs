@@ -23,15 +23,13 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::single::{
-    CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded, occluded_from_parts, prefetch_ref,
-};
+use super::single::{CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded_from_parts, prefetch_ref};
 use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
-
-mod lanewise;
 use super::{Accel, Hit};
 use crate::simd::{F8, Lanes, RayPacket, Vec3x};
+
+mod lanewise;
 
 /// Closest hits of a packet, lane by lane.
 #[derive(Clone, Copy, Debug)]
@@ -317,19 +315,7 @@ impl Accel {
     /// `hints` needs an entry for every lane up to the highest active one.
     pub fn occluded_lanes_cached<F: Lanes>(&self, packet: &RayPacket<F>, hints: &mut [u32]) -> u32 {
         debug_assert!(hints.len() >= 32 - packet.active.leading_zeros() as usize);
-        let p = CanonicalPacket::new(self, packet);
-        let mut blocked = 0;
-        let mut m = p.active;
-        while m != 0 {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let origin = p.origin.lane(i);
-            let rdir = || p.rdir.lane(i).to_array();
-            if occluded_from_parts(&self.wide, p.shear.lane(i, origin), origin, p.t_max.lane(i), &mut hints[i], rdir) {
-                blocked |= 1 << i;
-            }
-        }
-        blocked
+        occluded_each(&self.wide, &CanonicalPacket::new(self, packet), hints)
     }
 }
 
@@ -578,8 +564,8 @@ fn closest_frustum<F: Lanes>(
 }
 
 /// Occlusion of a coherent packet: frustum traversal, exact lane tests at leaves (and at inner
-/// nodes for frusta without a common apex); blocked
-/// lanes drop out and the traversal ends when all are blocked.
+/// nodes for frusta without a common apex); blocked lanes drop out and the traversal ends when
+/// all are blocked.
 #[inline(always)]
 fn occluded_frustum<F: Lanes>(
     bvh: &WideBvh<8>,
@@ -663,7 +649,22 @@ fn closest_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> (u32, F,
 
 /// Occlusion of an incoherent packet, lane by lane with the single-ray traversal.
 fn occluded_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> u32 {
-    (0..F::LANES)
-        .filter(|&i| p.active >> i & 1 != 0 && occluded(bvh, &p.ray(i), &mut NO_OCCLUDER.clone()))
-        .fold(0, |m, i| m | 1 << i)
+    occluded_each(bvh, p, &mut [NO_OCCLUDER; 16])
+}
+
+/// Occlusion of each active lane of `p` by the single-ray traversal, from the lane's set-up
+/// (no divisions redone), `hints[i]` being lane i's shadow cache.
+fn occluded_each<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>, hints: &mut [u32]) -> u32 {
+    let mut blocked = 0;
+    let mut m = p.active;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let origin = p.origin.lane(i);
+        let rdir = || p.rdir.lane(i).to_array();
+        if occluded_from_parts(bvh, p.shear.lane(i, origin), origin, p.t_max.lane(i), &mut hints[i], rdir) {
+            blocked |= 1 << i;
+        }
+    }
+    blocked
 }

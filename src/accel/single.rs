@@ -311,8 +311,9 @@ fn descend<S: Stack>(
 
 /// Starts loading the node or leaf block `r` refers to (see [`crate::simd::prefetch`]). Single
 /// rays do it for the children they push on the stack (not for a lone child, visited at once);
-/// packets for every child they will visit. Their cache misses then overlap other work. Measured on 2 threads: 1M-triangle scene bounce rays
-/// 4.9 → 5.7 Mrays/s, its 8-wide primary packets 21.1 → 23.4; Igea bounce 9.2 → 9.7.
+/// packets for every child they will visit. Their cache misses then overlap other work.
+/// Measured on 2 threads: 1M-triangle scene bounce rays 4.9 → 5.7 Mrays/s, its 8-wide primary
+/// packets 21.1 → 23.4; Igea bounce 9.2 → 9.7.
 #[inline(always)]
 pub(crate) fn prefetch_ref(bvh: &WideBvh<8>, r: u32) {
     if r & LEAF_BIT == 0 {
