@@ -10,7 +10,7 @@ use indicatif::ProgressBar;
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, discontinuity_filter};
-use crate::gather::{self, GBuffer, GatherEnergy, Interleave, Tracing};
+use crate::gather::{self, GBuffer, GatherEnergy, Gathered, Interleave, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -177,36 +177,23 @@ pub fn gather_frame_reusing(
     mut stats: FrameStats,
     spare: GBuffer,
 ) -> Frame {
-    let t = Instant::now();
-    let gbuf = gather::gbuffer::trace(
-        scene,
-        accel,
-        camera,
-        seed,
-        settings.jitter,
-        settings.max_specular,
-        settings.tracing,
-        spare,
-        &mut stats.rays,
-    );
-    stats.primary_time = t.elapsed();
-    let t = Instant::now();
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
-    let g_max = g_bound(scene, settings.clamp);
-    let (gathered, energy) = gather::gather(
-        scene,
-        accel,
-        &gbuf,
-        &vpls,
-        &inter,
-        g_max,
-        settings.min_distance,
-        settings.tracing,
-        &mut stats.rays,
-    );
+    let pass = OnePass {
+        camera,
+        seed,
+        jitter: settings.jitter,
+        max_specular: settings.max_specular,
+        tracing: settings.tracing,
+        interleave: &inter,
+        g_max: g_bound(scene, settings.clamp),
+        min_distance: settings.min_distance,
+    };
+    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time } =
+        gather::trace_and_gather(scene, accel, &vpls, &pass, spare, &mut stats.rays);
     stats.energy = energy;
-    stats.shadow_time = t.elapsed();
+    stats.primary_time = primary_time;
+    stats.shadow_time = shadow_time;
     let t = Instant::now();
     let filtered = match settings.filter {
         Some((angle, depth)) if n * m > 1 => {

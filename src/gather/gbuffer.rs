@@ -25,6 +25,8 @@ pub struct GBuffer {
     /// Height.
     pub height: u32,
     /// Receiver of each pixel (None: the ray left the scene or ended on specular surfaces).
+    /// Empty when the frame was traced and gathered in one pass ([`super::trace_and_gather`]),
+    /// which keeps each band's receivers only while it gathers them.
     pub receivers: Vec<Option<Receiver>>,
     /// Emission seen directly (and through specular bounces).
     pub emitted: Vec<Vec3>,
@@ -34,6 +36,118 @@ pub struct GBuffer {
     pub normal: Vec<Vec3>,
     /// Distance from the camera to the receiver along the first ray (0 when none).
     pub depth: Vec<f32>,
+}
+
+/// The camera rays of a frame and how they are traced: what [`trace`] and the one-pass
+/// [`super::trace_and_gather`] share.
+#[derive(Clone, Copy)]
+pub(crate) struct PrimaryRays<'a> {
+    pub scene: &'a Scene,
+    pub accel: &'a Accel,
+    pub camera: &'a Camera,
+    pub seed: u64,
+    pub jitter: bool,
+    pub max_specular: u32,
+    pub tracing: Tracing,
+}
+
+/// The G-buffer rows of one band, as slices of the frame's arrays (receivers may be a band-local
+/// buffer).
+pub(crate) struct BandSlices<'b> {
+    pub receivers: &'b mut [Option<Receiver>],
+    pub emitted: &'b mut [Vec3],
+    pub albedo: &'b mut [Vec3],
+    pub normal: &'b mut [Vec3],
+    pub depth: &'b mut [f32],
+}
+
+impl PrimaryRays<'_> {
+    /// Rows per band: the height of a packet's pixel block (1 for single rays).
+    pub(crate) fn band_rows(&self) -> u32 {
+        if self.tracing == Tracing::Single { 1 } else { block_size::<F8>().1 }
+    }
+
+    /// Traces the rows `y0..` of one band (`band_rows` rows, or fewer at the bottom) into `out`.
+    pub(crate) fn band(&self, y0: u32, out: BandSlices<'_>) -> RayStats {
+        let Self { scene, accel, camera, seed, jitter, max_specular, tracing } = *self;
+        let w = camera.width;
+        let (bw, bh) = if tracing == Tracing::Single { (1, 1) } else { block_size::<F8>() };
+        let y_end = (y0 + bh).min(camera.height);
+        // The camera ray of a pixel and the sampler that continues its specular bounces.
+        let setup = |x: u32, y: u32| {
+            let pixel = y as u64 * w as u64 + x as u64;
+            let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
+            let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
+            let lens = s.next_2d();
+            (s, camera.generate_ray(vec2(x as f32, y as f32) + off, lens))
+        };
+        let mut st = RayStats::default();
+        let mut finish = |x: u32, y: u32, mut s: IndependentSampler, ray: Ray, first: Option<Hit>| {
+            let (r, e) = receiver_from_hit(scene, accel, ray, first, &mut || s.next_1d(), max_specular, &mut st);
+            let i = ((y - y0) * w + x) as usize;
+            out.albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
+            out.normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
+            out.depth[i] = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
+            out.receivers[i] = r;
+            out.emitted[i] = e;
+        };
+        let mut block = Vec::with_capacity(F8::LANES);
+        let mut primary = 0;
+        for x0 in (0..w).step_by(bw as usize) {
+            for i in 0..(bw * bh) {
+                let (x, y) = (x0 + i % bw, y0 + i / bw);
+                if x < w && y < y_end {
+                    let (s, ray) = setup(x, y);
+                    block.push((x, y, s, ray));
+                }
+            }
+            primary += block.len() as u64;
+            if tracing == Tracing::Single {
+                for (x, y, s, ray) in block.drain(..) {
+                    let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
+                    finish(x, y, s, ray, first);
+                }
+            } else {
+                let packet = RayPacket::<F8>::from_fn(|i| {
+                    block.get(i).map(|(_, _, _, r)| LaneRay::new(r.origin, r.dir, f32::INFINITY))
+                });
+                let hits = accel.intersect_packet(&packet);
+                for (i, (x, y, s, ray)) in block.drain(..).enumerate() {
+                    finish(x, y, s, ray, hits.lane(i));
+                }
+            }
+        }
+        st.closest += primary;
+        st
+    }
+}
+
+impl GBuffer {
+    /// The allocation of `reuse` when it is `w`×`h` (every pixel is written by the tracer, so it
+    /// needs no clearing), or fresh arrays; receivers are sized only `with_receivers`.
+    pub(crate) fn reusing(reuse: GBuffer, w: u32, h: u32, with_receivers: bool) -> GBuffer {
+        let n = (w * h) as usize;
+        // Filled in parallel (a serial fill and its page faults cost as much as tracing).
+        let mut g = if reuse.width == w && reuse.height == h && reuse.emitted.len() == n {
+            reuse
+        } else {
+            GBuffer {
+                width: w,
+                height: h,
+                receivers: Vec::new(),
+                emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+                albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+                normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
+                depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
+            }
+        };
+        if !with_receivers {
+            g.receivers = Vec::new();
+        } else if g.receivers.len() != n {
+            g.receivers = (0..n).into_par_iter().map(|_| None).collect();
+        }
+        g
+    }
 }
 
 /// Traces one ray per pixel through a position jittered by `(seed, pass)` (pixel centres when
@@ -53,39 +167,10 @@ pub fn trace(
     reuse: GBuffer,
     stats: &mut RayStats,
 ) -> GBuffer {
+    let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
     let (w, h) = (camera.width, camera.height);
-    let (bw, bh) = if tracing == Tracing::Single { (1, 1) } else { block_size::<F8>() };
-    type Px = (Option<Receiver>, Vec3, f32);
-    // The camera ray of a pixel and the sampler that continues its specular bounces.
-    let setup = |x: u32, y: u32| {
-        let pixel = y as u64 * w as u64 + x as u64;
-        let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
-        let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
-        let lens = s.next_2d();
-        (s, camera.generate_ray(vec2(x as f32, y as f32) + off, lens))
-    };
-    let finish = |mut s: IndependentSampler, ray: Ray, first: Option<Hit>, st: &mut RayStats| -> Px {
-        let (r, e) = receiver_from_hit(scene, accel, ray, first, &mut || s.next_1d(), max_specular, st);
-        let depth = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
-        (r, e, depth)
-    };
-    let n = (w * h) as usize;
-    // Every pixel of every array is written below, so a reused buffer needs no clearing.
-    let mut g = if reuse.width == w && reuse.height == h && reuse.receivers.len() == n {
-        reuse
-    } else {
-        GBuffer {
-            width: w,
-            height: h,
-            // Filled in parallel (a serial fill and its page faults cost as much as tracing).
-            receivers: (0..n).into_par_iter().map(|_| None).collect(),
-            emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-            albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-            normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-            depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
-        }
-    };
-    let band_len = (bh * w) as usize;
+    let mut g = GBuffer::reusing(reuse, w, h, true);
+    let band_len = (rays.band_rows() * w) as usize;
     let band_stats: Vec<RayStats> = g
         .receivers
         .par_chunks_mut(band_len)
@@ -95,42 +180,7 @@ pub fn trace(
         .zip(g.depth.par_chunks_mut(band_len))
         .enumerate()
         .map(|(band, ((((receivers, emitted), albedo), normal), depth))| {
-            let y0 = band as u32 * bh;
-            let mut st = RayStats::default();
-            let mut store = |x: u32, y: u32, (r, e, d): Px| {
-                let i = ((y - y0) * w + x) as usize;
-                albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
-                normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
-                depth[i] = d;
-                receivers[i] = r;
-                emitted[i] = e;
-            };
-            let mut block = Vec::with_capacity(F8::LANES);
-            for x0 in (0..w).step_by(bw as usize) {
-                for i in 0..(bw * bh) {
-                    let (x, y) = (x0 + i % bw, y0 + i / bw);
-                    if x < w && y < h {
-                        let (s, ray) = setup(x, y);
-                        block.push((x, y, s, ray));
-                    }
-                }
-                st.closest += block.len() as u64;
-                if tracing == Tracing::Single {
-                    for (x, y, s, ray) in block.drain(..) {
-                        let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
-                        store(x, y, finish(s, ray, first, &mut st));
-                    }
-                } else {
-                    let packet = RayPacket::<F8>::from_fn(|i| {
-                        block.get(i).map(|(_, _, _, r)| LaneRay::new(r.origin, r.dir, f32::INFINITY))
-                    });
-                    let hits = accel.intersect_packet(&packet);
-                    for (i, (x, y, s, ray)) in block.drain(..).enumerate() {
-                        store(x, y, finish(s, ray, hits.lane(i), &mut st));
-                    }
-                }
-            }
-            st
+            rays.band(band as u32 * rays.band_rows(), BandSlices { receivers, emitted, albedo, normal, depth })
         })
         .collect();
     for st in band_stats {

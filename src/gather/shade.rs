@@ -299,6 +299,176 @@ impl LambertReceiver {
     }
 }
 
+/// What every row of a gather shares: the scene, the VPLs and their subsets, the clamp.
+pub(crate) struct Gatherer<'a> {
+    scene: &'a Scene,
+    accel: &'a Accel,
+    vpls: &'a VplSet,
+    inter: &'a Interleave,
+    g_max: f32,
+    min_d2: f32,
+    tracing: Tracing,
+    diffuse_vpls: bool,
+    /// The subsets' VPLs in lanes, for the Lambertian fast path (diffuse VPLs, single shadow rays).
+    chunks: Option<Vec<Vec<VplChunk>>>,
+}
+
+impl<'a> Gatherer<'a> {
+    pub(crate) fn new(
+        scene: &'a Scene,
+        accel: &'a Accel,
+        vpls: &'a VplSet,
+        inter: &'a Interleave,
+        g_max: f32,
+        min_distance: f32,
+        tracing: Tracing,
+    ) -> Self {
+        let diffuse_vpls = vpls.all_diffuse();
+        let chunks = (diffuse_vpls && matches!(tracing, Tracing::Single | Tracing::PrimaryPackets))
+            .then(|| chunk_subsets(vpls, inter));
+        let min_d2 = min_distance * min_distance;
+        Gatherer { scene, accel, vpls, inter, g_max, min_d2, tracing, diffuse_vpls, chunks }
+    }
+
+    /// The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
+    /// contributions (None: nothing to trace — too close, or zero unshadowed contribution).
+    #[inline]
+    fn candidate(&self, pt: &Prepared, r: &Receiver, x: u32, i: usize) -> Option<Pending> {
+        let vpls = self.vpls;
+        let target = vpls.position[i];
+        if self.min_d2 > 0.0 && (target - pt.p).length_squared() < self.min_d2 {
+            return None;
+        }
+        let (c, full) = match &pt.lambert {
+            Some(l) if self.diffuse_vpls => l.unshadowed(vpls, i, pt.p, self.g_max)?,
+            _ => unshadowed(vpls, i, r, self.g_max)?,
+        };
+        let o = pt.origin_towards(target);
+        Some((x, c, full, o, target - o))
+    }
+
+    /// Gathers row `y` from its receivers into `out` (VPL-transported light, interleave-scaled).
+    pub(crate) fn row(&self, y: u32, receivers: &[Option<Receiver>], out: &mut [Vec3]) -> (RayStats, GatherEnergy) {
+        let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
+        let w = receivers.len() as u32;
+        let mut st = RayStats::default();
+        let row_points: Vec<Option<Prepared>> =
+            receivers.iter().map(|r| r.as_ref().map(|r| Prepared::new(scene, r))).collect();
+        let candidate = |x: u32, i: usize| {
+            let r = receivers[x as usize].as_ref()?;
+            self.candidate(row_points[x as usize].as_ref()?, r, x, i)
+        };
+        let mut acc = RowSums {
+            sum: vec![Vec3::ZERO; w as usize],
+            removed: vec![Vec3::ZERO; w as usize],
+            pending: Vec::with_capacity(F8::LANES),
+        };
+        match self.tracing {
+            Tracing::Single | Tracing::PrimaryPackets => {
+                // Shadow cache: per VPL, the leaf that last blocked a ray to it in this row.
+                let mut occluders = vec![NO_OCCLUDER; vpls.len()];
+                for x in 0..w {
+                    // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
+                    if let (Some(chunks), Some(pt)) = (&self.chunks, &row_points[x as usize])
+                        && let Some(l) = &pt.lambert
+                    {
+                        if l.f == Vec3::ZERO {
+                            continue;
+                        }
+                        for ch in &chunks[inter.subset_of(x, y)] {
+                            let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
+                            if lc.lanes == 0 {
+                                continue;
+                            }
+                            // The chunk's shadow rays, set up together and traced one by one.
+                            let vpl = |j: usize| ch.index[j] as usize;
+                            let ray = |j: usize| {
+                                (lc.lanes >> j & 1 != 0).then(|| {
+                                    let target = vpls.position[vpl(j)];
+                                    let o = pt.origin_towards(target);
+                                    LaneRay::new(o, target - o, SHADOW_T_MAX)
+                                })
+                            };
+                            let mut hints = [NO_OCCLUDER; 8];
+                            let mut m = lc.lanes;
+                            while m != 0 {
+                                let j = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                hints[j] = occluders[vpl(j)];
+                            }
+                            // Up to four rays (a subset of 4 VPLs per pixel): 4 lanes.
+                            let blocked = if lc.lanes < 16 {
+                                accel.occluded_lanes_cached(&RayPacket::<F4>::from_fn(ray), &mut hints)
+                            } else {
+                                accel.occluded_lanes_cached(&RayPacket::<F8>::from_fn(ray), &mut hints)
+                            };
+                            st.shadow += lc.lanes.count_ones() as u64;
+                            let mut m = lc.lanes;
+                            while m != 0 {
+                                let j = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                occluders[vpl(j)] = hints[j];
+                                if blocked >> j & 1 == 0 {
+                                    let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
+                                    let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
+                                    acc.add_light(x, c, full);
+                                }
+                            }
+                        }
+                        continue;
+                    }
+                    for &i in &inter.subsets[inter.subset_of(x, y)] {
+                        if let Some(p) = candidate(x, i as usize) {
+                            st.shadow += 1;
+                            if !accel.occluded_cached(p.3, p.4, SHADOW_T_MAX, &mut occluders[i as usize]) {
+                                acc.add(p);
+                            }
+                        }
+                    }
+                }
+            }
+            Tracing::SharedOrigin => {
+                for x in 0..w {
+                    for &i in &inter.subsets[inter.subset_of(x, y)] {
+                        if let Some(p) = candidate(x, i as usize) {
+                            acc.push(p, accel, &mut st);
+                        }
+                    }
+                    acc.flush(accel, &mut st);
+                }
+            }
+            Tracing::SharedEnd => {
+                // Pixels x ≡ ox (mod n) of this row gather the same subset: packets of up
+                // to 8 of them towards each VPL of it.
+                let stride = inter.n as usize * F8::LANES;
+                for ox in 0..inter.n.min(w) {
+                    let subset = &inter.subsets[inter.subset_of(ox, y)];
+                    for start in (ox..w).step_by(stride) {
+                        let xs = (start..w).step_by(inter.n as usize).take(F8::LANES);
+                        for &i in subset {
+                            for x in xs.clone() {
+                                if let Some(p) = candidate(x, i as usize) {
+                                    acc.pending.push(p);
+                                }
+                            }
+                            acc.flush(accel, &mut st);
+                        }
+                    }
+                }
+            }
+        }
+        let mut energy = GatherEnergy::default();
+        for (x, o) in out.iter_mut().enumerate() {
+            let s = inter.scales[inter.subset_of(x as u32, y)];
+            let (sum, removed) = (acc.sum[x], acc.removed[x]);
+            energy.kept += (luminance(sum) * s) as f64;
+            energy.removed += (luminance(removed) * s) as f64;
+            *o = sum * s;
+        }
+        (st, energy)
+    }
+}
+
 /// Gathers `vpls` into an image of VPL-transported light (emission seen directly is not
 /// included; see [`GBuffer::emitted`]). `tracing` groups the shadow rays into packets (or not);
 /// every grouping traces the same rays and gives the same image.
@@ -313,152 +483,18 @@ pub fn gather(
     tracing: Tracing,
     stats: &mut RayStats,
 ) -> (Vec<Vec3>, GatherEnergy) {
-    let min_d2 = min_distance * min_distance;
-    let w = gbuf.width;
-    let diffuse_vpls = vpls.all_diffuse();
-    let chunks = (diffuse_vpls && matches!(tracing, Tracing::Single | Tracing::PrimaryPackets))
-        .then(|| chunk_subsets(vpls, inter));
-    // The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
-    // contributions (None: nothing to trace — too close, or zero unshadowed contribution).
-    let candidate = |pt: &Prepared, r: &Receiver, x: u32, i: usize| -> Option<Pending> {
-        let target = vpls.position[i];
-        if min_d2 > 0.0 && (target - pt.p).length_squared() < min_d2 {
-            return None;
-        }
-        let (c, full) = match &pt.lambert {
-            Some(l) if diffuse_vpls => l.unshadowed(vpls, i, pt.p, g_max)?,
-            _ => unshadowed(vpls, i, r, g_max)?,
-        };
-        let o = pt.origin_towards(target);
-        Some((x, c, full, o, target - o))
-    };
-    let rows: Vec<(Vec<Vec3>, RayStats, GatherEnergy)> = (0..gbuf.height)
-        .into_par_iter()
-        .map(|y| {
-            let mut st = RayStats::default();
-            let row_points: Vec<Option<Prepared>> = (0..w)
-                .map(|x| gbuf.receivers[(y * w + x) as usize].as_ref().map(|r| Prepared::new(scene, r)))
-                .collect();
-            let candidate = |x: u32, i: usize| {
-                let r = gbuf.receivers[(y * w + x) as usize].as_ref()?;
-                candidate(row_points[x as usize].as_ref()?, r, x, i)
-            };
-            let mut acc = RowSums {
-                sum: vec![Vec3::ZERO; w as usize],
-                removed: vec![Vec3::ZERO; w as usize],
-                pending: Vec::with_capacity(F8::LANES),
-            };
-            match tracing {
-                Tracing::Single | Tracing::PrimaryPackets => {
-                    // Shadow cache: per VPL, the leaf that last blocked a ray to it in this row.
-                    let mut occluders = vec![NO_OCCLUDER; vpls.len()];
-                    for x in 0..w {
-                        // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
-                        if let (Some(chunks), Some(pt)) = (&chunks, &row_points[x as usize])
-                            && let Some(l) = &pt.lambert
-                        {
-                            if l.f == Vec3::ZERO {
-                                continue;
-                            }
-                            for ch in &chunks[inter.subset_of(x, y)] {
-                                let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
-                                if lc.lanes == 0 {
-                                    continue;
-                                }
-                                // The chunk's shadow rays, set up together and traced one by one.
-                                let vpl = |j: usize| ch.index[j] as usize;
-                                let ray = |j: usize| {
-                                    (lc.lanes >> j & 1 != 0).then(|| {
-                                        let target = vpls.position[vpl(j)];
-                                        let o = pt.origin_towards(target);
-                                        LaneRay::new(o, target - o, SHADOW_T_MAX)
-                                    })
-                                };
-                                let mut hints = [NO_OCCLUDER; 8];
-                                let mut m = lc.lanes;
-                                while m != 0 {
-                                    let j = m.trailing_zeros() as usize;
-                                    m &= m - 1;
-                                    hints[j] = occluders[vpl(j)];
-                                }
-                                // Up to four rays (a subset of 4 VPLs per pixel): 4 lanes.
-                                let blocked = if lc.lanes < 16 {
-                                    accel.occluded_lanes_cached(&RayPacket::<F4>::from_fn(ray), &mut hints)
-                                } else {
-                                    accel.occluded_lanes_cached(&RayPacket::<F8>::from_fn(ray), &mut hints)
-                                };
-                                st.shadow += lc.lanes.count_ones() as u64;
-                                let mut m = lc.lanes;
-                                while m != 0 {
-                                    let j = m.trailing_zeros() as usize;
-                                    m &= m - 1;
-                                    occluders[vpl(j)] = hints[j];
-                                    if blocked >> j & 1 == 0 {
-                                        let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
-                                        let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
-                                        acc.add_light(x, c, full);
-                                    }
-                                }
-                            }
-                            continue;
-                        }
-                        for &i in &inter.subsets[inter.subset_of(x, y)] {
-                            if let Some(p) = candidate(x, i as usize) {
-                                st.shadow += 1;
-                                if !accel.occluded_cached(p.3, p.4, SHADOW_T_MAX, &mut occluders[i as usize]) {
-                                    acc.add(p);
-                                }
-                            }
-                        }
-                    }
-                }
-                Tracing::SharedOrigin => {
-                    for x in 0..w {
-                        for &i in &inter.subsets[inter.subset_of(x, y)] {
-                            if let Some(p) = candidate(x, i as usize) {
-                                acc.push(p, accel, &mut st);
-                            }
-                        }
-                        acc.flush(accel, &mut st);
-                    }
-                }
-                Tracing::SharedEnd => {
-                    // Pixels x ≡ ox (mod n) of this row gather the same subset: packets of up
-                    // to 8 of them towards each VPL of it.
-                    let stride = inter.n as usize * F8::LANES;
-                    for ox in 0..inter.n.min(w) {
-                        let subset = &inter.subsets[inter.subset_of(ox, y)];
-                        for start in (ox..w).step_by(stride) {
-                            let xs = (start..w).step_by(inter.n as usize).take(F8::LANES);
-                            for &i in subset {
-                                for x in xs.clone() {
-                                    if let Some(p) = candidate(x, i as usize) {
-                                        acc.pending.push(p);
-                                    }
-                                }
-                                acc.flush(accel, &mut st);
-                            }
-                        }
-                    }
-                }
-            }
-            let mut energy = GatherEnergy::default();
-            let row = (0..w)
-                .map(|x| {
-                    let s = inter.scales[inter.subset_of(x, y)];
-                    let (sum, removed) = (acc.sum[x as usize], acc.removed[x as usize]);
-                    energy.kept += (luminance(sum) * s) as f64;
-                    energy.removed += (luminance(removed) * s) as f64;
-                    sum * s
-                })
-                .collect();
-            (row, st, energy)
-        })
+    let w = gbuf.width as usize;
+    assert_eq!(gbuf.receivers.len(), w * gbuf.height as usize, "a G-buffer with receivers");
+    let gatherer = Gatherer::new(scene, accel, vpls, inter, g_max, min_distance, tracing);
+    let mut out = vec![Vec3::ZERO; gbuf.receivers.len()];
+    let rows: Vec<(RayStats, GatherEnergy)> = out
+        .par_chunks_mut(w.max(1))
+        .zip(gbuf.receivers.par_chunks(w.max(1)))
+        .enumerate()
+        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, out))
         .collect();
-    let mut out = Vec::with_capacity((w * gbuf.height) as usize);
     let mut energy = GatherEnergy::default();
-    for (row, st, e) in rows {
-        out.extend(row);
+    for (st, e) in rows {
         *stats += st;
         energy += e;
     }
