@@ -348,15 +348,20 @@ impl<F: Lanes> ShearPacket<F> {
     pub fn lane(&self, i: usize, origin: Vec3) -> ShearedRay {
         let [kx, ky, kz] = match &self.axes {
             Axes::Uniform(k) => *k,
-            Axes::Mixed(sel) => [0, 1, 2].map(|j| {
-                if sel[j][0].lane_bits(i) != 0 {
-                    0
-                } else if sel[j][1].lane_bits(i) != 0 {
-                    1
-                } else {
-                    2
-                }
-            }),
+            Axes::Mixed(sel) => {
+                // (Spelled out: an array map here was an out-of-line call whose result, read back
+                // through memory, stalled every lane of the gather's batched shadow rays.)
+                let axis = |j: usize| {
+                    if sel[j][0].bitmask() >> i & 1 != 0 {
+                        0
+                    } else if sel[j][1].bitmask() >> i & 1 != 0 {
+                        1
+                    } else {
+                        2
+                    }
+                };
+                [axis(0), axis(1), axis(2)]
+            }
         };
         ShearedRay { origin: origin.into(), kz, kx, ky, sx: self.sx.lane(i), sy: self.sy.lane(i), sz: self.sz.lane(i) }
     }

@@ -106,6 +106,7 @@ pub fn primary_receiver(
 
 /// [`primary_receiver`] continued from the camera ray `ray` whose closest hit `first` is already
 /// known (traced in a packet by the G-buffer), with the same specular bounces.
+#[inline]
 pub fn receiver_from_hit(
     scene: &Scene,
     accel: &Accel,
