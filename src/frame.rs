@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use indicatif::ProgressBar;
+use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
@@ -203,7 +204,7 @@ pub fn gather_frame_reusing(
         _ => gathered,
     };
     stats.filter_time = t.elapsed();
-    let image = filtered.iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
+    let image = filtered.par_iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
     Frame { image, gbuffer: gbuf, vpls, stats }
 }
 
