@@ -10,7 +10,7 @@ use crate::accel::rays::block_size;
 use crate::accel::{Accel, Hit};
 use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Camera, Ray, Scene};
-use crate::simd::{F8, LaneRay, Lanes, RayPacket};
+use crate::simd::{F8, LaneRay, RayPacket};
 use crate::stats::RayStats;
 use crate::vpl::transfer::{Receiver, receiver_from_hit};
 
@@ -82,39 +82,49 @@ impl PrimaryRays<'_> {
             (s, camera.generate_ray(vec2(x as f32, y as f32) + off, lens))
         };
         let mut st = RayStats::default();
-        let mut finish = |x: u32, y: u32, mut s: IndependentSampler, ray: Ray, first: Option<Hit>| {
-            let (r, e) = receiver_from_hit(scene, accel, ray, first, &mut || s.next_1d(), max_specular, &mut st);
-            let i = ((y - y0) * w + x) as usize;
-            out.albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
-            out.normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
-            out.depth[i] = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
-            out.receivers[i] = r;
-            out.emitted[i] = e;
-        };
-        let mut block = Vec::with_capacity(F8::LANES);
         let mut primary = 0;
+        // One block of camera rays: pixel, sampler, ray, first hit. Plain arrays and one call
+        // site of `receiver_from_hit`: passed through closures, these values went through
+        // memory and every pixel stalled on reading them back.
+        let mut samplers: [Option<IndependentSampler>; 8] = Default::default();
+        let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::Z }; 8];
+        let mut pixels = [(0u32, 0u32); 8];
+        let mut hits: [Option<Hit>; 8] = [None; 8];
         for x0 in (0..w).step_by(bw as usize) {
+            let mut n = 0;
             for i in 0..(bw * bh) {
                 let (x, y) = (x0 + i % bw, y0 + i / bw);
                 if x < w && y < y_end {
                     let (s, ray) = setup(x, y);
-                    block.push((x, y, s, ray));
+                    (samplers[n], rays[n], pixels[n]) = (Some(s), ray, (x, y));
+                    n += 1;
                 }
             }
-            primary += block.len() as u64;
+            primary += n as u64;
             if tracing == Tracing::Single {
-                for (x, y, s, ray) in block.drain(..) {
-                    let first = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
-                    finish(x, y, s, ray, first);
+                for (hit, ray) in hits.iter_mut().zip(&rays).take(n) {
+                    *hit = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
                 }
             } else {
                 let packet = RayPacket::<F8>::from_fn(|i| {
-                    block.get(i).map(|(_, _, _, r)| LaneRay::new(r.origin, r.dir, f32::INFINITY))
+                    (i < n).then(|| LaneRay::new(rays[i].origin, rays[i].dir, f32::INFINITY))
                 });
-                let hits = accel.intersect_packet(&packet);
-                for (i, (x, y, s, ray)) in block.drain(..).enumerate() {
-                    finish(x, y, s, ray, hits.lane(i));
+                let found = accel.intersect_packet(&packet);
+                for (i, hit) in hits.iter_mut().enumerate().take(n) {
+                    *hit = found.lane(i);
                 }
+            }
+            for k in 0..n {
+                let Some(mut s) = samplers[k].take() else { continue };
+                let (r, e) =
+                    receiver_from_hit(scene, accel, rays[k], hits[k], &mut || s.next_1d(), max_specular, &mut st);
+                let (x, y) = pixels[k];
+                let i = ((y - y0) * w + x) as usize;
+                out.albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
+                out.normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
+                out.depth[i] = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
+                out.receivers[i] = r;
+                out.emitted[i] = e;
             }
         }
         st.closest += primary;
