@@ -97,6 +97,59 @@ impl RowSums {
     }
 }
 
+/// Shadow rays of Lambertian pixels (diffuse VPLs) waiting to be traced: set up on eight
+/// lanes at once ([`Accel::occluded_lanes_cached`]) whichever pixels they come from, so a
+/// subset of four VPLs per pixel does not leave half of the set-up lanes idle.
+struct ShadowBatch {
+    rays: [LaneRay; 8],
+    /// Pixel, VPL, clamped and unclamped contribution of each ray.
+    x: [u32; 8],
+    vpl: [u32; 8],
+    c: [Vec3; 8],
+    full: [Vec3; 8],
+    len: usize,
+}
+
+impl ShadowBatch {
+    fn new() -> Self {
+        let idle = LaneRay::new(Vec3::ZERO, Vec3::X, 0.0);
+        ShadowBatch { rays: [idle; 8], x: [0; 8], vpl: [0; 8], c: [Vec3::ZERO; 8], full: [Vec3::ZERO; 8], len: 0 }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, ray: LaneRay, x: u32, vpl: u32, c: Vec3, full: Vec3) {
+        let k = self.len;
+        (self.rays[k], self.x[k], self.vpl[k], self.c[k], self.full[k]) = (ray, x, vpl, c, full);
+        self.len += 1;
+    }
+
+    /// Traces the batch (each ray with its VPL's shadow cache) and adds what is not blocked.
+    fn trace(&mut self, accel: &Accel, occluders: &mut [u32], acc: &mut RowSums, st: &mut RayStats) {
+        let n = self.len;
+        if n == 0 {
+            return;
+        }
+        let mut hints = [NO_OCCLUDER; 8];
+        for k in 0..n {
+            hints[k] = occluders[self.vpl[k] as usize];
+        }
+        let ray = |k: usize| (k < n).then(|| self.rays[k]);
+        let blocked = if n <= 4 {
+            accel.occluded_lanes_cached(&RayPacket::<F4>::from_fn(ray), &mut hints)
+        } else {
+            accel.occluded_lanes_cached(&RayPacket::<F8>::from_fn(ray), &mut hints)
+        };
+        st.shadow += n as u64;
+        for k in 0..n {
+            occluders[self.vpl[k] as usize] = hints[k];
+            if blocked >> k & 1 == 0 {
+                acc.add_light(self.x[k], self.c[k], self.full[k]);
+            }
+        }
+        self.len = 0;
+    }
+}
+
 /// A G-buffer receiver prepared for the gather's inner loop: the parts of
 /// [`unshadowed`] and [`shadow_segment`] that depend on the receiver alone, computed once per
 /// pixel instead of once per VPL–pixel pair.
@@ -367,6 +420,7 @@ impl<'a> Gatherer<'a> {
             Tracing::Single | Tracing::PrimaryPackets => {
                 // Shadow cache: per VPL, the leaf that last blocked a ray to it in this row.
                 let mut occluders = vec![NO_OCCLUDER; vpls.len()];
+                let mut batch = ShadowBatch::new();
                 for x in 0..w {
                     // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
                     if let (Some(chunks), Some(pt)) = (&self.chunks, &row_points[x as usize])
@@ -380,38 +434,20 @@ impl<'a> Gatherer<'a> {
                             if lc.lanes == 0 {
                                 continue;
                             }
-                            // The chunk's shadow rays, set up together and traced one by one.
-                            let vpl = |j: usize| ch.index[j] as usize;
-                            let ray = |j: usize| {
-                                (lc.lanes >> j & 1 != 0).then(|| {
-                                    let target = vpls.position[vpl(j)];
-                                    let o = pt.origin_towards(target);
-                                    LaneRay::new(o, target - o, SHADOW_T_MAX)
-                                })
-                            };
-                            let mut hints = [NO_OCCLUDER; 8];
+                            // The chunk's shadow rays join the row's batch: set up eight at a
+                            // time, across pixels, and traced one by one.
                             let mut m = lc.lanes;
                             while m != 0 {
                                 let j = m.trailing_zeros() as usize;
                                 m &= m - 1;
-                                hints[j] = occluders[vpl(j)];
-                            }
-                            // Up to four rays (a subset of 4 VPLs per pixel): 4 lanes.
-                            let blocked = if lc.lanes < 16 {
-                                accel.occluded_lanes_cached(&RayPacket::<F4>::from_fn(ray), &mut hints)
-                            } else {
-                                accel.occluded_lanes_cached(&RayPacket::<F8>::from_fn(ray), &mut hints)
-                            };
-                            st.shadow += lc.lanes.count_ones() as u64;
-                            let mut m = lc.lanes;
-                            while m != 0 {
-                                let j = m.trailing_zeros() as usize;
-                                m &= m - 1;
-                                occluders[vpl(j)] = hints[j];
-                                if blocked >> j & 1 == 0 {
-                                    let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
-                                    let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
-                                    acc.add_light(x, c, full);
+                                let i = ch.index[j];
+                                let target = vpls.position[i as usize];
+                                let o = pt.origin_towards(target);
+                                let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
+                                let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
+                                batch.push(LaneRay::new(o, target - o, SHADOW_T_MAX), x, i, c, full);
+                                if batch.len == F8::LANES {
+                                    batch.trace(accel, &mut occluders, &mut acc, &mut st);
                                 }
                             }
                         }
@@ -426,6 +462,7 @@ impl<'a> Gatherer<'a> {
                         }
                     }
                 }
+                batch.trace(accel, &mut occluders, &mut acc, &mut st);
             }
             Tracing::SharedOrigin => {
                 for x in 0..w {
