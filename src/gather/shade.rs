@@ -97,41 +97,55 @@ impl RowSums {
     }
 }
 
-/// Shadow rays of Lambertian pixels (diffuse VPLs) waiting to be traced: set up on eight
-/// lanes at once ([`Accel::occluded_lanes_cached`]) whichever pixels they come from, so a
-/// subset of four VPLs per pixel does not leave half of the set-up lanes idle.
-struct ShadowBatch {
+/// Shadow rays waiting to be traced, each with its shadow-cache slot (its VPL) and a payload:
+/// set up on eight lanes at once ([`Accel::occluded_lanes_cached`]) and traced one by one,
+/// whichever receivers they come from (a pixel's subset of four VPLs would leave half of the
+/// set-up lanes idle; MIR's probes each send one ray to the same VPL).
+pub(crate) struct ShadowBatch<T: Copy + Default> {
     rays: [LaneRay; 8],
-    /// Pixel, VPL, clamped and unclamped contribution of each ray.
-    x: [u32; 8],
-    vpl: [u32; 8],
-    c: [Vec3; 8],
-    full: [Vec3; 8],
+    slot: [u32; 8],
+    item: [T; 8],
     len: usize,
 }
 
-impl ShadowBatch {
-    fn new() -> Self {
+impl<T: Copy + Default> ShadowBatch<T> {
+    pub(crate) fn new() -> Self {
         let idle = LaneRay::new(Vec3::ZERO, Vec3::X, 0.0);
-        ShadowBatch { rays: [idle; 8], x: [0; 8], vpl: [0; 8], c: [Vec3::ZERO; 8], full: [Vec3::ZERO; 8], len: 0 }
+        ShadowBatch { rays: [idle; 8], slot: [0; 8], item: [T::default(); 8], len: 0 }
     }
 
+    /// Queues the segment from `o` to `target` (tested up to [`SHADOW_T_MAX`]) with cache slot
+    /// `slot`, tracing the batch (see [`ShadowBatch::trace`]) when it is full.
     #[inline(always)]
-    fn push(&mut self, ray: LaneRay, x: u32, vpl: u32, c: Vec3, full: Vec3) {
+    pub(crate) fn push(
+        &mut self,
+        o: Vec3,
+        target: Vec3,
+        slot: u32,
+        item: T,
+        accel: &Accel,
+        cache: &mut [u32],
+        st: &mut RayStats,
+        visible: impl FnMut(T),
+    ) {
         let k = self.len;
-        (self.rays[k], self.x[k], self.vpl[k], self.c[k], self.full[k]) = (ray, x, vpl, c, full);
+        (self.rays[k], self.slot[k], self.item[k]) = (LaneRay::new(o, target - o, SHADOW_T_MAX), slot, item);
         self.len += 1;
+        if self.len == F8::LANES {
+            self.trace(accel, cache, st, visible);
+        }
     }
 
-    /// Traces the batch (each ray with its VPL's shadow cache) and adds what is not blocked.
-    fn trace(&mut self, accel: &Accel, occluders: &mut [u32], acc: &mut RowSums, st: &mut RayStats) {
+    /// Traces the queued rays (ray k with the shadow cache `cache[slot k]`, updated in queue
+    /// order) and calls `visible` with the payload of each unblocked ray, in queue order.
+    pub(crate) fn trace(&mut self, accel: &Accel, cache: &mut [u32], st: &mut RayStats, mut visible: impl FnMut(T)) {
         let n = self.len;
         if n == 0 {
             return;
         }
         let mut hints = [NO_OCCLUDER; 8];
         for k in 0..n {
-            hints[k] = occluders[self.vpl[k] as usize];
+            hints[k] = cache[self.slot[k] as usize];
         }
         let ray = |k: usize| (k < n).then(|| self.rays[k]);
         let blocked = if n <= 4 {
@@ -141,9 +155,10 @@ impl ShadowBatch {
         };
         st.shadow += n as u64;
         for k in 0..n {
-            occluders[self.vpl[k] as usize] = hints[k];
-            if blocked >> k & 1 == 0 {
-                acc.add_light(self.x[k], self.c[k], self.full[k]);
+            if blocked >> k & 1 != 0 {
+                cache[self.slot[k] as usize] = hints[k];
+            } else {
+                visible(self.item[k]);
             }
         }
         self.len = 0;
@@ -193,28 +208,17 @@ impl Prepared {
         Prepared { p: r.sp.p, ng: r.sp.ng, offset, lambert }
     }
 
-    /// [`crate::vpl::transfer::contribution`] of VPL `i` of `set` with visibility, clamped at
-    /// `g_max`; `hint` is the shadow cache of [`Accel::occluded_cached`].
-    /// `r` is the receiver this was prepared from.
-    pub(crate) fn contribution(
-        &self,
-        r: &Receiver,
-        accel: &Accel,
-        set: &VplSet,
-        i: usize,
-        g_max: f32,
-        hint: &mut u32,
-        stats: &mut RayStats,
-    ) -> Vec3 {
+    /// The clamped contribution of VPL `i` before visibility, and the shadow segment (origin,
+    /// target) that decides it; None when the contribution is zero.
+    #[inline]
+    pub(crate) fn unshadowed(&self, r: &Receiver, set: &VplSet, i: usize, g_max: f32) -> Option<(Vec3, Vec3, Vec3)> {
         let c = match &self.lambert {
             Some(l) if set.lobe[i] == crate::vpl::set::NO_LOBE => l.unshadowed(set, i, self.p, g_max),
             _ => unshadowed(set, i, r, g_max),
         };
-        let Some((c, _)) = c else { return Vec3::ZERO };
+        let (c, _) = c?;
         let target = set.position[i];
-        let o = self.origin_towards(target);
-        stats.shadow += 1;
-        if accel.occluded_cached(o, target - o, SHADOW_T_MAX, hint) { Vec3::ZERO } else { c }
+        Some((c, self.origin_towards(target), target))
     }
 
     /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.
@@ -420,7 +424,8 @@ impl<'a> Gatherer<'a> {
             Tracing::Single | Tracing::PrimaryPackets => {
                 // Shadow cache: per VPL, the leaf that last blocked a ray to it in this row.
                 let mut occluders = vec![NO_OCCLUDER; vpls.len()];
-                let mut batch = ShadowBatch::new();
+                // Pixel, clamped and unclamped contribution of each queued ray.
+                let mut batch = ShadowBatch::<(u32, Vec3, Vec3)>::new();
                 for x in 0..w {
                     // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
                     if let (Some(chunks), Some(pt)) = (&self.chunks, &row_points[x as usize])
@@ -445,10 +450,8 @@ impl<'a> Gatherer<'a> {
                                 let o = pt.origin_towards(target);
                                 let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
                                 let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
-                                batch.push(LaneRay::new(o, target - o, SHADOW_T_MAX), x, i, c, full);
-                                if batch.len == F8::LANES {
-                                    batch.trace(accel, &mut occluders, &mut acc, &mut st);
-                                }
+                                let add = |(x, c, full)| acc.add_light(x, c, full);
+                                batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                             }
                         }
                         continue;
@@ -462,7 +465,7 @@ impl<'a> Gatherer<'a> {
                         }
                     }
                 }
-                batch.trace(accel, &mut occluders, &mut acc, &mut st);
+                batch.trace(accel, &mut occluders, &mut st, |(x, c, full)| acc.add_light(x, c, full));
             }
             Tracing::SharedOrigin => {
                 for x in 0..w {

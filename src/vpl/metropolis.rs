@@ -37,7 +37,7 @@ use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
 use crate::accel::Accel;
 use crate::color::luminance;
-use crate::gather::shade::Prepared;
+use crate::gather::shade::{Prepared, ShadowBatch};
 use crate::sampling::{Distribution1D, IndependentSampler, Pcg32, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -562,15 +562,24 @@ impl<K: MutationKernel> Mir<K> {
                 // Probe batches until enough probes see the VPL (or all batches are used).
                 let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
                 // Neighbouring probes are blocked by the same leaf: a shadow cache for this VPL.
-                let mut hint = crate::accel::single::NO_OCCLUDER;
+                let mut hint = [crate::accel::single::NO_OCCLUDER];
+                // Shadow rays set up eight at a time; unblocked ones add their luminance in
+                // probe order (blocked and dark probes add zero).
+                let mut rays = ShadowBatch::<f64>::new();
                 for b in 0..batches {
                     let ProbeBatch { receivers, rays: count, .. } = batch(b);
-                    for (r, pt) in receivers {
-                        let y = luminance(pt.contribution(r, accel, &one, 0, g_target, &mut hint, &mut st)) as f64;
+                    let mut add = |y: f64| {
                         sum += y;
                         sum2 += y * y;
                         hits += (y > 0.0) as usize;
+                    };
+                    for (r, pt) in receivers {
+                        if let Some((c, o, target)) = pt.unshadowed(r, &one, 0, g_target) {
+                            let y = luminance(c) as f64;
+                            rays.push(o, target, 0, y, accel, &mut hint, &mut st, &mut add);
+                        }
                     }
+                    rays.trace(accel, &mut hint, &mut st, &mut add);
                     rays_used += count;
                     if hits >= min_hits {
                         break;
