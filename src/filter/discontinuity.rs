@@ -37,7 +37,8 @@ impl DiscontinuitySettings {
 ///
 /// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
 /// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
-/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form).
+/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form);
+/// two rows of centres share those loads.
 pub fn filter(
     width: u32,
     height: u32,
@@ -73,44 +74,90 @@ pub fn filter(
         }
     });
     let mut out = vec![Vec3::ZERO; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let (y0, y1) = (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
-        let (zero, one, cos) = (L::splat(0.0), L::splat(1.0), L::splat(cos_max));
-        let centre_row = y * PLANES * pw;
+    let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
+    // Two centre rows at a time: their windows share all rows but one, so each neighbour
+    // vector is loaded once for both.
+    out.par_chunks_mut(2 * w).enumerate().for_each(|(pair, rows)| {
+        // The pair's rows (the last pair of an odd height has one).
+        let n_rows = rows.len() / w;
+        let ys = [2 * pair, 2 * pair + 1];
+        let window = |y: usize| (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
+        let (first, last) = (window(ys[0]).0, window(ys[n_rows - 1]).1);
         for xc in (0..w).step_by(L::LANES) {
             // L::LANES pixels of plane k of the row at `base`, from padded position `xs`.
             let at = |base: usize, k: usize, xs: usize| L::load(&planes[base + k * pw + xs..]);
             let c = pad + xc;
-            let (nx, ny, nz, d0) =
-                (at(centre_row, 0, c), at(centre_row, 1, c), at(centre_row, 2, c), at(centre_row, 3, c));
-            let tol = L::splat(s.max_relative_depth) * d0;
-            // The window includes the pixel itself, which always passes its own test.
-            let (mut sx, mut sy, mut sz, mut count) = (zero, zero, zero, zero);
-            for yy in y0..=y1 {
+            let mut acc = ys.map(|y| {
+                if y >= h {
+                    // No such row: an empty window.
+                    return Centre::new([L::splat(0.0); 3], L::splat(0.0), L::splat(0.0), (1, 0));
+                }
+                let base = y * PLANES * pw;
+                let (nx, ny, nz, d0) = (at(base, 0, c), at(base, 1, c), at(base, 2, c), at(base, 3, c));
+                Centre::new([nx, ny, nz], d0, rel_depth * d0, window(y))
+            });
+            for yy in first..=last {
                 let base = yy * PLANES * pw;
+                let takers: u32 =
+                    acc.iter().enumerate().fold(0, |m, (k, a)| m | ((a.rows.0 <= yy && yy <= a.rows.1) as u32) << k);
                 // Lane l reads pixel xc + l + dx; pixels outside the image are pads.
                 for xs in (pad + xc - x_lo..).take(x_lo + x_hi + 1) {
-                    let dot = at(base, 0, xs) * nx + at(base, 1, xs) * ny + at(base, 2, xs) * nz;
-                    let keep = dot.ge(cos).and((at(base, 3, xs) - d0).abs().le(tol));
-                    sx += keep.select(at(base, 4, xs), zero);
-                    sy += keep.select(at(base, 5, xs), zero);
-                    sz += keep.select(at(base, 6, xs), zero);
-                    count += keep.select(one, zero);
+                    let n = [at(base, 0, xs), at(base, 1, xs), at(base, 2, xs)];
+                    let (d, v) = (at(base, 3, xs), [at(base, 4, xs), at(base, 5, xs), at(base, 6, xs)]);
+                    for (k, a) in acc.iter_mut().enumerate() {
+                        if takers >> k & 1 != 0 {
+                            a.add(&n, d, &v, cos, one);
+                        }
+                    }
                 }
             }
-            let (sx, sy, sz, count) = (sx.to_array(), sy.to_array(), sz.to_array(), count.to_array());
-            for lane in 0..L::LANES.min(w - xc) {
-                let (x, i) = (xc + lane, y * w + xc + lane);
-                let (a, n0, d) = (albedo[i], normal[i], depth[i]);
-                row[x] = if a.min_element() <= 0.0 || n0 == Vec3::ZERO || d <= 0.0 || count[lane] == 0.0 {
-                    gathered[i]
-                } else {
-                    Vec3::new(sx[lane], sy[lane], sz[lane]) / count[lane] * a
-                };
+            for (a, &y) in acc.iter().zip(&ys).take(n_rows) {
+                let row = &mut rows[(y - 2 * pair) * w..][..w];
+                let (sx, sy, sz, count) =
+                    (a.sum[0].to_array(), a.sum[1].to_array(), a.sum[2].to_array(), a.count.to_array());
+                for lane in 0..L::LANES.min(w - xc) {
+                    let (x, i) = (xc + lane, y * w + xc + lane);
+                    let (al, n0, d) = (albedo[i], normal[i], depth[i]);
+                    row[x] = if al.min_element() <= 0.0 || n0 == Vec3::ZERO || d <= 0.0 || count[lane] == 0.0 {
+                        gathered[i]
+                    } else {
+                        Vec3::new(sx[lane], sy[lane], sz[lane]) / count[lane] * al
+                    };
+                }
             }
         }
     });
     out
+}
+
+/// The window sums of L::LANES centres of one row.
+struct Centre {
+    normal: [L; 3],
+    depth: L,
+    tol: L,
+    /// Window rows (first, last).
+    rows: (usize, usize),
+    sum: [L; 3],
+    count: L,
+}
+
+impl Centre {
+    fn new(normal: [L; 3], depth: L, tol: L, rows: (usize, usize)) -> Self {
+        let zero = L::splat(0.0);
+        Centre { normal, depth, tol, rows, sum: [zero; 3], count: zero }
+    }
+
+    /// Adds the neighbours (normal `n`, depth `d`, ratio `v`) that pass the centres' tests.
+    #[inline(always)]
+    fn add(&mut self, n: &[L; 3], d: L, v: &[L; 3], cos: L, one: L) {
+        let zero = L::splat(0.0);
+        let dot = n[0] * self.normal[0] + n[1] * self.normal[1] + n[2] * self.normal[2];
+        let keep = dot.ge(cos).and((d - self.depth).abs().le(self.tol));
+        for (s, &v) in self.sum.iter_mut().zip(v) {
+            *s += keep.select(v, zero);
+        }
+        self.count += keep.select(one, zero);
+    }
 }
 
 /// Planes per row of the filter's SoA copy of the G-buffer (normal xyz, depth, ratio xyz).
