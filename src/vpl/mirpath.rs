@@ -9,9 +9,8 @@
 use glam::{Vec2, Vec3};
 
 use super::set::Vpl;
-use super::set::VplSet;
 use super::sir::vpl_of_vertex;
-use super::transfer::{Receiver, SHADOW_T_MAX, unshadowed};
+use super::transfer::{Receiver, SHADOW_T_MAX, unshadowed_vpl};
 use crate::accel::{Accel, offset_origin, ray_offset};
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::luminance;
@@ -89,9 +88,7 @@ pub fn target_g_bound(scene: &Scene) -> f32 {
 /// `vpl`): radiance arriving at the camera through x₁ with the x₁–VPL geometry term bounded at
 /// [`target_g_bound`], zero when occluded.
 pub fn contribution(scene: &Scene, accel: &Accel, cam: &CameraEnd, vpl: &Vpl, stats: &mut RayStats) -> Vec3 {
-    let mut set = VplSet::default();
-    set.push(*vpl);
-    let Some((c, _)) = unshadowed(&set, 0, &cam.receiver, target_g_bound(scene)) else { return Vec3::ZERO };
+    let Some((c, _)) = unshadowed_vpl(vpl, &cam.receiver, target_g_bound(scene)) else { return Vec3::ZERO };
     let r = &cam.receiver;
     let origin = offset_origin(&r.sp, &scene.mesh.corners(r.sp.tri), vpl.position - r.sp.p);
     stats.shadow += 1;

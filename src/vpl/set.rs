@@ -91,6 +91,40 @@ pub struct Vpl {
     pub group: u32,
 }
 
+impl Vpl {
+    /// [`VplSet::radiance`] of this VPL.
+    #[inline]
+    pub fn radiance_towards(&self, w: Vec3) -> Vec3 {
+        emitted(self.radiance, self.lobe.as_ref(), w)
+    }
+
+    /// [`VplSet::cos_at`] of this VPL.
+    #[inline]
+    pub fn cos_at(&self, w: Vec3) -> f32 {
+        cos_factor(self.normal, self.flags, w)
+    }
+}
+
+/// Radiance of a VPL with radiance factor `r` and `lobe` along `w`.
+#[inline]
+fn emitted(r: Vec3, lobe: Option<&VplLobe>, w: Vec3) -> Vec3 {
+    match lobe {
+        None => r,
+        Some(VplLobe::Surface { bsdf, wo }) => r * bsdf.f(*wo, w) * shading_correction(bsdf, *wo, w),
+        Some(VplLobe::Spot { axis, cos_inner, cos_outer }) => r * spot_falloff(axis.dot(w), *cos_inner, *cos_outer),
+    }
+}
+
+/// The cosine factor at a VPL with normal `n` and `flags` for direction `w`.
+#[inline]
+fn cos_factor(n: Vec3, flags: u8, w: Vec3) -> f32 {
+    if n == Vec3::ZERO {
+        return 1.0;
+    }
+    let c = n.dot(w);
+    if flags & TWO_SIDED != 0 { c.abs() } else { c.max(0.0) }
+}
+
 impl VplSet {
     /// Number of VPLs.
     pub fn len(&self) -> usize {
@@ -136,26 +170,18 @@ impl VplSet {
     /// Radiance VPL `i` emits along unit direction `w` (not including the cosine at the VPL).
     #[inline]
     pub fn radiance(&self, i: usize, w: Vec3) -> Vec3 {
-        let r = self.radiance[i];
-        match self.lobe[i] {
-            NO_LOBE => r,
-            l => match &self.lobes[l as usize] {
-                VplLobe::Surface { bsdf, wo } => r * bsdf.f(*wo, w) * shading_correction(bsdf, *wo, w),
-                VplLobe::Spot { axis, cos_inner, cos_outer } => r * spot_falloff(axis.dot(w), *cos_inner, *cos_outer),
-            },
-        }
+        let lobe = match self.lobe[i] {
+            NO_LOBE => None,
+            l => Some(&self.lobes[l as usize]),
+        };
+        emitted(self.radiance[i], lobe, w)
     }
 
     /// The cosine factor at VPL `i` for direction `w`: max(0, n·w), |n·w| when two-sided, 1 for
     /// punctual lights.
     #[inline]
     pub fn cos_at(&self, i: usize, w: Vec3) -> f32 {
-        let n = self.normal[i];
-        if n == Vec3::ZERO {
-            return 1.0;
-        }
-        let c = n.dot(w);
-        if self.flags[i] & TWO_SIDED != 0 { c.abs() } else { c.max(0.0) }
+        cos_factor(self.normal[i], self.flags[i], w)
     }
 
     /// Appends all VPLs of `other`, offsetting its groups.

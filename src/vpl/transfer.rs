@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use super::set::VplSet;
+use super::set::{Vpl, VplSet};
 use crate::accel::{Accel, offset_origin};
 use crate::bsdf::Bsdf;
 use crate::scene::{Camera, Scene, SurfacePoint};
@@ -36,14 +36,31 @@ pub fn g_bound(scene: &Scene, clamp: f32) -> f32 {
 /// radiance towards the viewer, before visibility; `None` when it is zero.
 #[inline]
 pub fn unshadowed(set: &VplSet, i: usize, r: &Receiver, g_max: f32) -> Option<(Vec3, Vec3)> {
-    let d = set.position[i] - r.sp.p;
+    unshadowed_from(set.position[i], |w| set.cos_at(i, w), |w| set.radiance(i, w), r, g_max)
+}
+
+/// [`unshadowed`] for one VPL outside a set (no set to build for it).
+#[inline]
+pub fn unshadowed_vpl(v: &Vpl, r: &Receiver, g_max: f32) -> Option<(Vec3, Vec3)> {
+    unshadowed_from(v.position, |w| v.cos_at(w), |w| v.radiance_towards(w), r, g_max)
+}
+
+#[inline(always)]
+fn unshadowed_from(
+    position: Vec3,
+    cos_at: impl Fn(Vec3) -> f32,
+    radiance: impl Fn(Vec3) -> Vec3,
+    r: &Receiver,
+    g_max: f32,
+) -> Option<(Vec3, Vec3)> {
+    let d = position - r.sp.p;
     let d2 = d.length_squared();
     if !(d2 > 0.0) {
         return None;
     }
     let dist = d2.sqrt();
     let wi = d / dist;
-    let cos_v = set.cos_at(i, -wi);
+    let cos_v = cos_at(-wi);
     if cos_v <= 0.0 {
         return None;
     }
@@ -52,7 +69,7 @@ pub fn unshadowed(set: &VplSet, i: usize, r: &Receiver, g_max: f32) -> Option<(V
     if f == Vec3::ZERO {
         return None;
     }
-    let le = set.radiance(i, -wi);
+    let le = radiance(-wi);
     let g = cos_v * cos_r / d2;
     let base = r.beta * le * f;
     Some((base * g.min(g_max), base * g))
