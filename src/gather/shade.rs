@@ -456,12 +456,12 @@ impl<'a> Gatherer<'a> {
                         }
                         continue;
                     }
+                    // Any other receiver or VPL: the general kernels, the same batched rays.
                     for &i in &inter.subsets[inter.subset_of(x, y)] {
-                        if let Some(p) = candidate(x, i as usize) {
-                            st.shadow += 1;
-                            if !accel.occluded_cached(p.3, p.4, SHADOW_T_MAX, &mut occluders[i as usize]) {
-                                acc.add(p);
-                            }
+                        if let Some((x, c, full, o, _)) = candidate(x, i as usize) {
+                            let add = |(x, c, full)| acc.add_light(x, c, full);
+                            let target = vpls.position[i as usize];
+                            batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                         }
                     }
                 }
