@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
-use crate::filter::{DiscontinuitySettings, discontinuity_filter};
+use crate::filter::{DiscontinuitySettings, PlaneLayout, filter_planes};
 use crate::gather::{self, GBuffer, GatherEnergy, Gathered, Interleave, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
@@ -180,6 +180,12 @@ pub fn gather_frame_reusing(
 ) -> Frame {
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
+    let filter = match settings.filter {
+        Some((angle, depth)) if n * m > 1 => {
+            Some(DiscontinuitySettings { n, m, max_normal_angle_deg: angle, max_relative_depth: depth })
+        }
+        _ => None,
+    };
     let pass = OnePass {
         camera,
         seed,
@@ -189,17 +195,19 @@ pub fn gather_frame_reusing(
         interleave: &inter,
         g_max: g_bound(scene, settings.clamp),
         min_distance: settings.min_distance,
+        planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
     };
-    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time } =
+    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes } =
         gather::trace_and_gather(scene, accel, &vpls, &pass, spare, &mut stats.rays);
     stats.energy = energy;
     stats.primary_time = primary_time;
     stats.shadow_time = shadow_time;
     let t = Instant::now();
-    let filtered = match settings.filter {
-        Some((angle, depth)) if n * m > 1 => {
-            let s = DiscontinuitySettings { n, m, max_normal_angle_deg: angle, max_relative_depth: depth };
-            discontinuity_filter(gbuf.width, gbuf.height, &gathered, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &s)
+    // (The planes were filled during the pass: their time counts there.)
+    let filtered = match (filter, planes) {
+        (Some(s), Some(planes)) => {
+            let layout = PlaneLayout::new(gbuf.width, &s);
+            filter_planes(&layout, &planes, gbuf.height, &gathered, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &s)
         }
         _ => gathered,
     };

@@ -33,12 +33,54 @@ impl DiscontinuitySettings {
     }
 }
 
+/// The filter's structure-of-arrays copy of the G-buffer: per image row, [`PLANES`] planes of
+/// `pw` floats — normal x, y, z, depth, and the irradiance-like ratio gathered / albedo (x, y,
+/// z) — with pixel x at `x + pad`. A pixel that neither gives nor takes (a zero albedo channel)
+/// has depth NaN, which fails every depth test, and so do the pads: windows reaching past the
+/// image edge simply find no neighbours there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlaneLayout {
+    /// Image width.
+    pub width: usize,
+    /// Floats per plane row.
+    pub pw: usize,
+    /// Pad before pixel 0.
+    pub pad: usize,
+}
+
+impl PlaneLayout {
+    /// The layout for `width`-pixel rows and the windows of `s`.
+    pub fn new(width: u32, s: &DiscontinuitySettings) -> Self {
+        let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
+        let pad = x_lo.max(x_hi) + L::LANES;
+        PlaneLayout { width: width as usize, pw: width as usize + 2 * pad, pad }
+    }
+
+    /// Floats of one image row's planes.
+    pub fn row_len(&self) -> usize {
+        PLANES * self.pw
+    }
+
+    /// Fills `row` (one image row's planes, [`PlaneLayout::row_len`] floats, pads zero or as
+    /// left by an earlier fill) from that row's pixels.
+    #[inline]
+    pub fn fill_row(&self, row: &mut [f32], gathered: &[Vec3], albedo: &[Vec3], normal: &[Vec3], depth: &[f32]) {
+        let (pw, pad) = (self.pw, self.pad);
+        row[3 * pw..4 * pw].fill(f32::NAN);
+        for x in 0..self.width {
+            let a = albedo[x];
+            if a.min_element() <= 0.0 {
+                continue;
+            }
+            let (n, r) = (normal[x], gathered[x] / a);
+            for (k, v) in [n.x, n.y, n.z, depth[x], r.x, r.y, r.z].into_iter().enumerate() {
+                row[k * pw + pad + x] = v;
+            }
+        }
+    }
+}
+
 /// Filters `gathered` (per-pixel VPL light) using the G-buffer's albedo, normals and depths.
-///
-/// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
-/// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
-/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form);
-/// two rows of centres share those loads.
 pub fn filter(
     width: u32,
     height: u32,
@@ -48,31 +90,40 @@ pub fn filter(
     depth: &[f32],
     s: &DiscontinuitySettings,
 ) -> Vec<Vec3> {
+    let layout = PlaneLayout::new(width, s);
+    let w = width as usize;
+    let mut planes = vec![0.0f32; layout.row_len() * height as usize];
+    planes.par_chunks_mut(layout.row_len()).enumerate().for_each(|(y, row)| {
+        let r = y * w..(y + 1) * w;
+        layout.fill_row(row, &gathered[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+    });
+    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s)
+}
+
+/// [`filter`] from planes already filled ([`PlaneLayout::fill_row`] for every row; the frame
+/// pipeline fills them while each band of rows is in cache).
+///
+/// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
+/// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
+/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form);
+/// two rows of centres share those loads.
+pub fn filter_planes(
+    layout: &PlaneLayout,
+    planes: &[f32],
+    height: u32,
+    gathered: &[Vec3],
+    albedo: &[Vec3],
+    normal: &[Vec3],
+    depth: &[f32],
+    s: &DiscontinuitySettings,
+) -> Vec<Vec3> {
+    assert_eq!(planes.len(), layout.row_len() * height as usize, "filter planes of another size");
+    assert_eq!(*layout, PlaneLayout::new(layout.width as u32, s), "filter planes laid out for other windows");
     let cos_max = s.max_normal_angle_deg.to_radians().cos();
-    let (w, h) = (width as usize, height as usize);
+    let (w, h) = (layout.width, height as usize);
     let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
     let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
-    // Per row, 7 planes of `pw` floats: normal x, y, z, depth, and the irradiance-like ratio
-    // gathered / albedo (x, y, z); pixel x sits at x + pad. A pixel that neither gives nor takes
-    // (a zero albedo channel) has depth NaN, which fails every depth test, and so do the pads:
-    // windows reaching past the image edge simply find no neighbours there.
-    let pad = x_lo.max(x_hi) + L::LANES;
-    let pw = w + 2 * pad;
-    let mut planes = vec![0.0f32; PLANES * pw * h];
-    planes.par_chunks_mut(PLANES * pw).enumerate().for_each(|(y, row)| {
-        row[3 * pw..4 * pw].fill(f32::NAN);
-        for x in 0..w {
-            let i = y * w + x;
-            let a = albedo[i];
-            if a.min_element() <= 0.0 {
-                continue;
-            }
-            let (n, r) = (normal[i], gathered[i] / a);
-            for (k, v) in [n.x, n.y, n.z, depth[i], r.x, r.y, r.z].into_iter().enumerate() {
-                row[k * pw + pad + x] = v;
-            }
-        }
-    });
+    let (pw, pad) = (layout.pw, layout.pad);
     let mut out = vec![Vec3::ZERO; w * h];
     let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
     // Two centre rows at a time: their windows share all rows but one, so each neighbour
@@ -161,7 +212,7 @@ impl Centre {
 }
 
 /// Planes per row of the filter's SoA copy of the G-buffer (normal xyz, depth, ratio xyz).
-const PLANES: usize = 7;
+pub const PLANES: usize = 7;
 
 #[cfg(test)]
 mod tests {

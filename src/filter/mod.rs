@@ -2,4 +2,4 @@
 
 pub mod discontinuity;
 
-pub use discontinuity::{DiscontinuitySettings, filter as discontinuity_filter};
+pub use discontinuity::{DiscontinuitySettings, PlaneLayout, filter as discontinuity_filter, filter_planes};

@@ -16,6 +16,7 @@ pub use interleave::Interleave;
 pub use shade::{GatherEnergy, gather};
 
 use crate::accel::Accel;
+use crate::filter::PlaneLayout;
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 use crate::vpl::VplSet;
@@ -41,6 +42,8 @@ pub struct OnePass<'a> {
     pub g_max: f32,
     /// VPLs closer than this to a receiver are skipped.
     pub min_distance: f32,
+    /// Fill the discontinuity buffer's planes of this layout too (see [`Gathered::planes`]).
+    pub planes: Option<PlaneLayout>,
 }
 
 /// The result of [`trace_and_gather`].
@@ -57,6 +60,9 @@ pub struct Gathered {
     pub primary_time: Duration,
     /// See `primary_time`.
     pub shadow_time: Duration,
+    /// The discontinuity buffer's planes ([`crate::filter::filter_planes`]), filled band by
+    /// band while the band's G-buffer and light are in cache, when [`OnePass::planes`] asks.
+    pub planes: Option<Vec<f32>>,
 }
 
 /// [`gbuffer::trace`] and [`gather`] in one pass: each band of rows is traced and then gathered
@@ -73,13 +79,20 @@ pub fn trace_and_gather(
     stats: &mut RayStats,
 ) -> Gathered {
     let start = Instant::now();
-    let OnePass { camera, seed, jitter, max_specular, tracing, interleave, g_max, min_distance } = *pass;
+    let OnePass { camera, seed, jitter, max_specular, tracing, interleave, g_max, min_distance, planes: layout } =
+        *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
     let (w, h) = (camera.width, camera.height);
     let mut g = GBuffer::reusing(reuse, w, h, false);
     let band_len = (rays.band_rows() * w) as usize;
     let mut light: Vec<Vec3> = (0..(w * h) as usize).into_par_iter().map(|_| Vec3::ZERO).collect();
+    let mut planes = layout.map(|l| vec![0.0f32; l.row_len() * h as usize]);
+    let n_bands = (h as usize).div_ceil(rays.band_rows() as usize);
+    let mut plane_bands: Vec<Option<&mut [f32]>> = match (&mut planes, layout) {
+        (Some(p), Some(l)) => p.chunks_mut(l.row_len() * rays.band_rows() as usize).map(Some).collect(),
+        _ => (0..n_bands).map(|_| None).collect(),
+    };
     // Per band: ray statistics, energy, and thread time in each half.
     type Band = (RayStats, GatherEnergy, Duration, Duration);
     let bands: Vec<Band> = light
@@ -88,22 +101,31 @@ pub fn trace_and_gather(
         .zip(g.albedo.par_chunks_mut(band_len.max(1)))
         .zip(g.normal.par_chunks_mut(band_len.max(1)))
         .zip(g.depth.par_chunks_mut(band_len.max(1)))
+        .zip(plane_bands.par_iter_mut())
         .enumerate()
-        .map_init(Vec::new, |receivers, (band, ((((light, emitted), albedo), normal), depth))| {
+        .map_init(Vec::new, |receivers, (band, (((((light, emitted), albedo), normal), depth), plane_band))| {
             let t = Instant::now();
             receivers.resize(light.len(), None);
             let y0 = band as u32 * rays.band_rows();
             let mut st = rays.band(y0, BandSlices { receivers, emitted, albedo, normal, depth });
             let t_primary = t.elapsed();
             let mut energy = GatherEnergy::default();
-            for (k, (receivers, light)) in receivers.chunks(w as usize).zip(light.chunks_mut(w as usize)).enumerate() {
+            let row = w as usize;
+            for (k, (receivers, light)) in receivers.chunks(row).zip(light.chunks_mut(row)).enumerate() {
                 let (s, e) = gatherer.row(y0 + k as u32, receivers, light);
                 st += s;
                 energy += e;
             }
+            if let (Some(l), Some(p)) = (layout, plane_band) {
+                for (k, plane_row) in p.chunks_mut(l.row_len()).enumerate() {
+                    let r = k * row..(k + 1) * row;
+                    l.fill_row(plane_row, &light[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+                }
+            }
             (st, energy, t_primary, t.elapsed() - t_primary)
         })
         .collect();
+    drop(plane_bands);
     let (mut energy, mut primary, mut shadow) = (GatherEnergy::default(), Duration::ZERO, Duration::ZERO);
     for (st, e, p, s) in bands {
         *stats += st;
@@ -114,7 +136,7 @@ pub fn trace_and_gather(
     let wall = start.elapsed();
     let share = primary.as_secs_f64() / (primary + shadow).as_secs_f64().max(1e-12);
     let primary_time = wall.mul_f64(share);
-    Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time }
+    Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes }
 }
 
 /// How the G-buffer and the gather trace their rays (all give the same image: packet lanes equal
@@ -142,6 +164,7 @@ pub enum Tracing {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::filter::{DiscontinuitySettings, discontinuity_filter, filter_planes};
     use crate::load::builtin;
     use crate::scene::CameraSettings;
     use crate::vpl::VplSampler;
@@ -160,6 +183,8 @@ mod tests {
         let inter = Interleave::new(&vpls, 4, 3);
         for tracing in [Tracing::Single, Tracing::PrimaryPackets, Tracing::SharedEnd, Tracing::SharedOrigin] {
             let g_max = g_bound(&scene, 300.0);
+            let filter = DiscontinuitySettings::new(4, 3);
+            let layout = PlaneLayout::new(camera.width, &filter);
             let mut st_a = RayStats::default();
             let gbuf = gbuffer::trace(&scene, &accel, &camera, 5, true, 4, tracing, GBuffer::default(), &mut st_a);
             let (light, energy) = gather(&scene, &accel, &gbuf, &vpls, &inter, g_max, 0.0, tracing, &mut st_a);
@@ -172,6 +197,7 @@ mod tests {
                 interleave: &inter,
                 g_max,
                 min_distance: 0.0,
+                planes: Some(layout),
             };
             // Twice: fresh arrays, then the first pass's arrays reused.
             let mut spare = GBuffer::default();
@@ -189,6 +215,13 @@ mod tests {
                 let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
                 assert!(close(one.energy.kept, energy.kept) && close(one.energy.removed, energy.removed));
                 assert_eq!(st, st_a);
+                // The planes filled band by band filter to the standalone filter's image.
+                let (gb, h) = (&one.gbuffer, camera.height);
+                let planes = one.planes.as_ref().expect("planes asked for");
+                let banded = filter_planes(&layout, planes, h, &one.light, &gb.albedo, &gb.normal, &gb.depth, &filter);
+                let whole =
+                    discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
+                assert_eq!(banded, whole, "{tracing:?}: filtered images differ");
                 spare = one.gbuffer;
             }
         }
