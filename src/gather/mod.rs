@@ -146,10 +146,10 @@ pub fn trace_and_gather(
 pub enum Tracing {
     /// One ray at a time everywhere (the fast single-ray traversal).
     Single,
-    /// 8-wide packets for the primary rays of 4×2 pixel blocks, single shadow rays: the fastest
-    /// on every scene measured (shadow packets win ≤ 10 % on the Cornell box and lose up to
-    /// 2.6× on the 1M-triangle sphere field, where the first occluder ends a single ray but
-    /// not a packet).
+    /// 8-wide packets for the primary rays of 4×2 pixel blocks, single shadow rays set up eight
+    /// at a time: the fastest on every scene measured (shadow packets towards one VPL are
+    /// 1.1× slower on the Cornell box and on the 1M-triangle sphere field;
+    /// benches/results/2026-12-01-gather.md).
     #[default]
     PrimaryPackets,
     /// Primary packets, and shadow rays in 8-wide packets grouped by shared end point — the
