@@ -74,11 +74,13 @@ pub struct FrameStats {
     pub sampler: SamplerStats,
     /// VPL generation time.
     pub vpl_time: Duration,
-    /// Primary rays / G-buffer time.
+    /// Primary rays / G-buffer time. The G-buffer and the gather run as one pass over bands of
+    /// rows ([`gather::trace_and_gather`]): its wall time is split between this and
+    /// `shadow_time` in proportion to the thread time each part took.
     pub primary_time: Duration,
-    /// Gather (shadow rays and shading) time.
+    /// Gather (shadow rays and shading) time, including filling the filter's planes.
     pub shadow_time: Duration,
-    /// Filter time.
+    /// Filter time (the planes it reads were filled during the pass).
     pub filter_time: Duration,
     /// Rays of the G-buffer and the gather.
     pub rays: RayStats,
@@ -204,9 +206,8 @@ pub fn gather_frame_reusing(
     stats.shadow_time = shadow_time;
     let t = Instant::now();
     // (The planes were filled during the pass: their time counts there.)
-    let filtered = match (filter, planes) {
-        (Some(s), Some(planes)) => {
-            let layout = PlaneLayout::new(gbuf.width, &s);
+    let filtered = match (filter, pass.planes, planes) {
+        (Some(s), Some(layout), Some(planes)) => {
             filter_planes(&layout, &planes, gbuf.height, &gathered, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &s)
         }
         _ => gathered,

@@ -144,7 +144,8 @@ pub fn trace_and_gather(
 /// benches/results/*-gather.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Tracing {
-    /// One ray at a time everywhere (the fast single-ray traversal).
+    /// No packets: camera rays one at a time, shadow rays traced one at a time (set up eight
+    /// at a time, as in the default).
     Single,
     /// 8-wide packets for the primary rays of 4×2 pixel blocks, single shadow rays set up eight
     /// at a time: the fastest on every scene measured (shadow packets towards one VPL are
@@ -168,61 +169,100 @@ mod tests {
     use crate::load::builtin;
     use crate::scene::CameraSettings;
     use crate::vpl::VplSampler;
+    use crate::vpl::set::{Vpl, VplLobe};
     use crate::vpl::sir::Sir;
     use crate::vpl::transfer::g_bound;
 
     /// The one-pass frame equals the G-buffer traced whole and then gathered, bit for bit, on an
-    /// image whose size is not a multiple of the packet blocks or of the interleave tile.
+    /// image whose size is not a multiple of the packet blocks or of the interleave tile: on the
+    /// Cornell box (diffuse VPLs: the 8-VPL kernel), on the glass sphere (receivers behind
+    /// specular bounces), with a spot VPL added (every pixel through the general kernels), and
+    /// with a minimum VPL distance. The light is also checked against the shared-origin
+    /// grouping, whose sums take another route (`RowSums`) in the same per-pixel order.
     #[test]
     fn one_pass_equals_trace_then_gather() {
-        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
-        let accel = Accel::build(&scene.mesh);
-        let mut camera = scene.camera.clone();
-        (camera.width, camera.height) = (45, 29);
-        let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 96, 3);
-        let inter = Interleave::new(&vpls, 4, 3);
-        for tracing in [Tracing::Single, Tracing::PrimaryPackets, Tracing::SharedEnd, Tracing::SharedOrigin] {
+        for (name, desc, spot, min_distance) in [
+            ("cornell", builtin::cornell(), false, 0.0),
+            ("cornell", builtin::cornell(), false, 0.5),
+            ("glass-sphere", builtin::glass_sphere(), false, 0.0),
+            ("cornell", builtin::cornell(), true, 0.0),
+        ] {
+            let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
+            let accel = Accel::build(&scene.mesh);
+            let mut camera = scene.camera.clone();
+            (camera.width, camera.height) = (45, 29);
+            let (mut vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 96, 3);
+            if spot {
+                let axis = Vec3::new(0.0, -1.0, 0.0);
+                let lobe = Some(VplLobe::Spot { axis, cos_inner: 0.9, cos_outer: 0.7 });
+                let position = scene.bounds.center() + Vec3::Y * 0.2 * scene.bounds.diagonal();
+                let radiance = Vec3::splat(vpls.radiance.iter().map(|r| r.max_element()).sum::<f32>());
+                vpls.push(Vpl {
+                    position,
+                    normal: Vec3::ZERO,
+                    radiance,
+                    lobe,
+                    count: 1,
+                    flags: 0,
+                    length: 1,
+                    group: 0,
+                });
+                assert!(!vpls.all_diffuse());
+            }
+            let inter = Interleave::new(&vpls, 4, 3);
             let g_max = g_bound(&scene, 300.0);
             let filter = DiscontinuitySettings::new(4, 3);
             let layout = PlaneLayout::new(camera.width, &filter);
-            let mut st_a = RayStats::default();
-            let gbuf = gbuffer::trace(&scene, &accel, &camera, 5, true, 4, tracing, GBuffer::default(), &mut st_a);
-            let (light, energy) = gather(&scene, &accel, &gbuf, &vpls, &inter, g_max, 0.0, tracing, &mut st_a);
-            let pass = OnePass {
-                camera: &camera,
-                seed: 5,
-                jitter: true,
-                max_specular: 4,
-                tracing,
-                interleave: &inter,
-                g_max,
-                min_distance: 0.0,
-                planes: Some(layout),
-            };
-            // Twice: fresh arrays, then the first pass's arrays reused.
-            let mut spare = GBuffer::default();
-            for _ in 0..2 {
+            let reference = {
                 let mut st = RayStats::default();
-                let one = trace_and_gather(&scene, &accel, &vpls, &pass, spare, &mut st);
-                assert!(one.light.iter().any(|l| *l != Vec3::ZERO), "{tracing:?}: no light gathered");
-                assert_eq!(one.light, light, "{tracing:?}");
-                assert_eq!(one.gbuffer.emitted, gbuf.emitted);
-                assert_eq!(one.gbuffer.albedo, gbuf.albedo);
-                assert_eq!(one.gbuffer.normal, gbuf.normal);
-                assert_eq!(one.gbuffer.depth, gbuf.depth);
-                assert!(one.gbuffer.receivers.is_empty());
-                // Energy sums are f64 sums of the same rows grouped differently (by band).
-                let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
-                assert!(close(one.energy.kept, energy.kept) && close(one.energy.removed, energy.removed));
-                assert_eq!(st, st_a);
-                // The planes filled band by band filter to the standalone filter's image.
-                let (gb, h) = (&one.gbuffer, camera.height);
-                let planes = one.planes.as_ref().expect("planes asked for");
-                let banded = filter_planes(&layout, planes, h, &one.light, &gb.albedo, &gb.normal, &gb.depth, &filter);
-                let whole =
-                    discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
-                assert_eq!(banded, whole, "{tracing:?}: filtered images differ");
-                spare = one.gbuffer;
+                let tracing = Tracing::SharedOrigin;
+                let gbuf = gbuffer::trace(&scene, &accel, &camera, 5, true, 4, tracing, GBuffer::default(), &mut st);
+                gather(&scene, &accel, &gbuf, &vpls, &inter, g_max, min_distance, tracing, &mut st).0
+            };
+            for tracing in [Tracing::Single, Tracing::PrimaryPackets, Tracing::SharedEnd, Tracing::SharedOrigin] {
+                let case = format!("{name} spot {spot} min {min_distance} {tracing:?}");
+                let mut st_a = RayStats::default();
+                let gbuf = gbuffer::trace(&scene, &accel, &camera, 5, true, 4, tracing, GBuffer::default(), &mut st_a);
+                let (light, energy) =
+                    gather(&scene, &accel, &gbuf, &vpls, &inter, g_max, min_distance, tracing, &mut st_a);
+                assert!(light == reference, "{case}: grouping changed the light");
+                let pass = OnePass {
+                    camera: &camera,
+                    seed: 5,
+                    jitter: true,
+                    max_specular: 4,
+                    tracing,
+                    interleave: &inter,
+                    g_max,
+                    min_distance,
+                    planes: Some(layout),
+                };
+                // Twice: fresh arrays, then the first pass's arrays reused.
+                let mut spare = GBuffer::default();
+                for _ in 0..2 {
+                    let mut st = RayStats::default();
+                    let one = trace_and_gather(&scene, &accel, &vpls, &pass, spare, &mut st);
+                    assert!(one.light.iter().any(|l| *l != Vec3::ZERO), "{case}: no light gathered");
+                    assert!(one.light == light, "{case}");
+                    assert_eq!(one.gbuffer.emitted, gbuf.emitted);
+                    assert_eq!(one.gbuffer.albedo, gbuf.albedo);
+                    assert_eq!(one.gbuffer.normal, gbuf.normal);
+                    assert_eq!(one.gbuffer.depth, gbuf.depth);
+                    assert!(one.gbuffer.receivers.is_empty());
+                    // Energy sums are f64 sums of the same rows grouped differently (by band).
+                    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+                    assert!(close(one.energy.kept, energy.kept) && close(one.energy.removed, energy.removed));
+                    assert_eq!(st, st_a);
+                    // The planes filled band by band filter to the standalone filter's image.
+                    let (gb, h) = (&one.gbuffer, camera.height);
+                    let planes = one.planes.as_ref().expect("planes asked for");
+                    let banded =
+                        filter_planes(&layout, planes, h, &one.light, &gb.albedo, &gb.normal, &gb.depth, &filter);
+                    let whole =
+                        discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
+                    assert!(banded == whole, "{case}: filtered images differ");
+                    spare = one.gbuffer;
+                }
             }
         }
     }

@@ -136,8 +136,10 @@ impl<T: Copy + Default> ShadowBatch<T> {
         }
     }
 
-    /// Traces the queued rays (ray k with the shadow cache `cache[slot k]`, updated in queue
-    /// order) and calls `visible` with the payload of each unblocked ray, in queue order.
+    /// Traces the queued rays and calls `visible` with the payload of each unblocked ray, in
+    /// queue order. Ray k starts from the shadow cache `cache[slot k]` as it was when the batch
+    /// was traced (rays of one batch do not see each other's occluders); a blocked ray then
+    /// leaves its occluder there, in queue order. The answers do not depend on the cache.
     pub(crate) fn trace(&mut self, accel: &Accel, cache: &mut [u32], st: &mut RayStats, mut visible: impl FnMut(T)) {
         let n = self.len;
         if n == 0 {
