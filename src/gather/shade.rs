@@ -16,6 +16,7 @@ use crate::color::luminance;
 use crate::scene::Scene;
 use crate::simd::{F4, F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
+use crate::vpl::set::VplLobe;
 #[cfg(doc)]
 use crate::vpl::transfer::shadow_segment;
 use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, unshadowed};
@@ -257,13 +258,18 @@ impl LambertReceiver {
         if self.wo_ns * wi_ns <= 0.0 || self.f == Vec3::ZERO {
             return None;
         }
+        if set.radiance[i] == Vec3::ZERO {
+            return None;
+        }
         let g = cos_v * wi_ns.abs() / d2;
         let base = self.beta * set.radiance[i] * self.f;
         Some((base * g.min(g_max), base * g))
     }
 }
 
-/// Eight diffuse VPLs of one interleave subset in lanes, for [`LambertReceiver::unshadowed8`].
+/// Eight VPLs of one interleave subset in lanes, for [`LambertReceiver::unshadowed8`]: diffuse
+/// VPLs, and Lambertian surface VPLs whose shading normal differs from their geometric normal
+/// (smooth-shaded meshes), whose radiance towards w is `r·f(wo, w)·(shading correction)`.
 #[derive(Clone, Copy)]
 struct VplChunk {
     /// VPL index of each lane.
@@ -272,10 +278,41 @@ struct VplChunk {
     lanes: u32,
     position: [F8; 3],
     normal: [F8; 3],
+    /// Diffuse lanes: the radiance; smooth lanes: `r · ρ/π` (the lobe's factor times its BSDF
+    /// value on the reflecting side).
     radiance: [F8; 3],
     /// Masks: the VPL is punctual (zero normal, cosine 1); it emits on both sides.
     punctual: F8,
     two_sided: F8,
+    /// Smooth lanes: the mask, the lobe's shading normal and geometric normal, and `wo·n_s`,
+    /// `wo·n_g` for its `wo` (zero in diffuse lanes).
+    smooth: F8,
+    smooth_lanes: u32,
+    lobe_ns: [F8; 3],
+    lobe_ng: [F8; 3],
+    wo_ns: F8,
+    wo_ng: F8,
+}
+
+/// The albedo of VPL `i` when its lobe is a Lambertian surface (None: diffuse VPL or another
+/// lobe).
+fn lambert_lobe(vpls: &VplSet, i: usize) -> Option<(Vec3, &crate::bsdf::Bsdf, Vec3)> {
+    match vpls.lobe[i] {
+        crate::vpl::set::NO_LOBE => None,
+        l => match &vpls.lobes[l as usize] {
+            VplLobe::Surface { bsdf, wo } => match bsdf.kind {
+                BsdfKind::Lambert { albedo } => Some((albedo, bsdf, *wo)),
+                _ => None,
+            },
+            VplLobe::Spot { .. } => None,
+        },
+    }
+}
+
+/// True when every VPL fits the 8-VPL kernel: diffuse, or a Lambertian surface lobe.
+fn chunkable(vpls: &VplSet) -> bool {
+    vpls.all_diffuse()
+        || (0..vpls.len()).all(|i| vpls.lobe[i] == crate::vpl::set::NO_LOBE || lambert_lobe(vpls, i).is_some())
 }
 
 /// The VPLs of every interleave subset, eight to a chunk, in subset order.
@@ -288,8 +325,19 @@ fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
                 .chunks(F8::LANES)
                 .map(|ids| {
                     let at = |f: &dyn Fn(usize) -> f32| F8::from_fn(|j| ids.get(j).map_or(0.0, |&i| f(i as usize)));
-                    let flag = |f: &dyn Fn(usize) -> bool| {
-                        F8::mask_from_bits(ids.iter().enumerate().fold(0, |m, (j, &i)| m | (f(i as usize) as u32) << j))
+                    let bits = |f: &dyn Fn(usize) -> bool| {
+                        ids.iter().enumerate().fold(0, |m, (j, &i)| m | (f(i as usize) as u32) << j)
+                    };
+                    let flag = |f: &dyn Fn(usize) -> bool| F8::mask_from_bits(bits(f));
+                    let lobe = |i: usize| lambert_lobe(vpls, i);
+                    let smooth_lanes = bits(&|i| lobe(i).is_some());
+                    // What `VplSet::radiance` multiplies by the shading correction: r · (ρ/π).
+                    let factor = |i: usize| match lobe(i) {
+                        Some((albedo, _, _)) => vpls.radiance[i] * (albedo * FRAC_1_PI),
+                        None => vpls.radiance[i],
+                    };
+                    let lobe_at = |f: &dyn Fn(&crate::bsdf::Bsdf, Vec3) -> f32| {
+                        at(&|i| lobe(i).map_or(0.0, |(_, b, wo)| f(b, wo)))
                     };
                     VplChunk {
                         index: std::array::from_fn(|j| ids.get(j).copied().unwrap_or(0)),
@@ -300,13 +348,19 @@ fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
                             at(&|i| vpls.position[i].z),
                         ],
                         normal: [at(&|i| vpls.normal[i].x), at(&|i| vpls.normal[i].y), at(&|i| vpls.normal[i].z)],
-                        radiance: [
-                            at(&|i| vpls.radiance[i].x),
-                            at(&|i| vpls.radiance[i].y),
-                            at(&|i| vpls.radiance[i].z),
-                        ],
+                        radiance: [at(&|i| factor(i).x), at(&|i| factor(i).y), at(&|i| factor(i).z)],
                         punctual: flag(&|i| vpls.normal[i] == Vec3::ZERO),
                         two_sided: flag(&|i| vpls.flags[i] & TWO_SIDED != 0),
+                        smooth: F8::mask_from_bits(smooth_lanes),
+                        smooth_lanes,
+                        lobe_ns: [
+                            lobe_at(&|b, _| b.frame.n.x),
+                            lobe_at(&|b, _| b.frame.n.y),
+                            lobe_at(&|b, _| b.frame.n.z),
+                        ],
+                        lobe_ng: [lobe_at(&|b, _| b.ng.x), lobe_at(&|b, _| b.ng.y), lobe_at(&|b, _| b.ng.z)],
+                        wo_ns: lobe_at(&|b, wo| wo.dot(b.frame.n)),
+                        wo_ng: lobe_at(&|b, wo| wo.dot(b.ng)),
                     }
                 })
                 .collect()
@@ -339,6 +393,7 @@ impl LambertReceiver {
         let dist = d2.sqrt();
         let wi = [d[0] / dist, d[1] / dist, d[2] / dist];
         let dot = |a: &[F8; 3], v: Vec3| a[0] * F8::splat(v.x) + a[1] * F8::splat(v.y) + a[2] * F8::splat(v.z);
+        let dot3 = |a: &[F8; 3], b: &[F8; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         // cos_at(−wi): the VPL normal against the direction back to it.
         let c = zero - (ch.normal[0] * wi[0] + ch.normal[1] * wi[1] + ch.normal[2] * wi[2]);
         let cos_v = ch.punctual.select(one, ch.two_sided.select(c.abs(), c.vmax(zero)));
@@ -348,7 +403,25 @@ impl LambertReceiver {
         valid = valid.and_not((F8::splat(self.wo_ns) * wi_ns).le(zero));
         let g = cos_v * wi_ns.abs() / d2;
         let g_c = g.vmin(F8::splat(g_max));
-        let base = |k: usize| F8::splat(self.beta[k]) * ch.radiance[k] * F8::splat(self.f[k]);
+        // Smooth lanes: the lobe's radiance towards w = −wi, as `VplSet::radiance` evaluates it
+        // (Bsdf::f's reflection and Lambert side tests, then the shading correction). Lanes
+        // where it is zero are dropped: their contribution is zero.
+        let mut le = ch.radiance;
+        if ch.smooth_lanes & lanes != 0 {
+            let w_ng = zero - dot3(&wi, &ch.lobe_ng);
+            let w_ns = zero - dot3(&wi, &ch.lobe_ns);
+            let lit = (ch.wo_ng * w_ng).gt(zero).and_not((ch.wo_ns * w_ns).le(zero));
+            let num = ch.wo_ns.abs() * w_ng.abs();
+            let den = ch.wo_ng.abs() * w_ns.abs();
+            let sc = den.eq(zero).select(zero, num / den);
+            for (l, r) in le.iter_mut().zip(&ch.radiance) {
+                *l = ch.smooth.select(lit.select(*r * sc, zero), *r);
+            }
+        }
+        // No radiance towards the receiver: no contribution and no shadow ray (as the scalar
+        // kernels).
+        valid = valid.and_not(le[0].eq(zero).and(le[1].eq(zero)).and(le[2].eq(zero)));
+        let base = |k: usize| F8::splat(self.beta[k]) * le[k] * F8::splat(self.f[k]);
         let (b0, b1, b2) = (base(0), base(1), base(2));
         LaneContributions {
             lanes: valid.bitmask(),
@@ -368,7 +441,8 @@ pub(crate) struct Gatherer<'a> {
     min_d2: f32,
     tracing: Tracing,
     diffuse_vpls: bool,
-    /// The subsets' VPLs in lanes, for the Lambertian fast path (diffuse VPLs, single shadow rays).
+    /// The subsets' VPLs in lanes, for the Lambertian fast path (diffuse or Lambertian-lobe VPLs,
+    /// single shadow rays).
     chunks: Option<Vec<Vec<VplChunk>>>,
 }
 
@@ -383,7 +457,7 @@ impl<'a> Gatherer<'a> {
         tracing: Tracing,
     ) -> Self {
         let diffuse_vpls = vpls.all_diffuse();
-        let chunks = (diffuse_vpls && matches!(tracing, Tracing::Single | Tracing::PrimaryPackets))
+        let chunks = (matches!(tracing, Tracing::Single | Tracing::PrimaryPackets) && chunkable(vpls))
             .then(|| chunk_subsets(vpls, inter));
         let min_d2 = min_distance * min_distance;
         Gatherer { scene, accel, vpls, inter, g_max, min_d2, tracing, diffuse_vpls, chunks }
@@ -429,7 +503,7 @@ impl<'a> Gatherer<'a> {
                 // Pixel, clamped and unclamped contribution of each queued ray.
                 let mut batch = ShadowBatch::<(u32, Vec3, Vec3)>::new();
                 for x in 0..w {
-                    // Lambertian receiver, diffuse VPLs: eight VPLs at a time.
+                    // Lambertian receiver, diffuse or Lambertian-lobe VPLs: eight VPLs at a time.
                     if let (Some(chunks), Some(pt)) = (&self.chunks, &row_points[x as usize])
                         && let Some(l) = &pt.lambert
                     {
@@ -612,5 +686,68 @@ mod tests {
             }
         }
         assert!(pairs > 10_000, "only {pairs} contributing pairs");
+    }
+
+    /// Smooth-shaded Lambertian VPLs (shading normal ≠ geometric normal: a matte icosphere with
+    /// vertex normals in the Cornell box) go through the eight-lane kernel with the bits of the
+    /// general kernel (`VplSet::radiance` with Bsdf::f and the shading correction): a lane is
+    /// set exactly when the general kernel gives a contribution, and then it is the same.
+    #[test]
+    fn smooth_lambert_vpls_match_the_general_kernel_bit_for_bit() {
+        let mut desc = builtin::glass_sphere();
+        for m in &mut desc.materials {
+            if m.name == "glass" {
+                m.scatter = crate::load::desc::ScatterDesc::Diffuse;
+                m.base_color = Vec3::new(0.7, 0.6, 0.5);
+            }
+        }
+        let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let mut camera = scene.camera.clone();
+        camera.width = 32;
+        camera.height = 32;
+        let mut st = RayStats::default();
+        let gbuf = super::super::gbuffer::trace(
+            &scene,
+            &accel,
+            &camera,
+            3,
+            true,
+            4,
+            Tracing::PrimaryPackets,
+            GBuffer::default(),
+            &mut st,
+        );
+        let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 2048, 5);
+        let smooth = (0..vpls.len()).filter(|&i| lambert_lobe(&vpls, i).is_some()).count();
+        assert!(smooth >= 20 && chunkable(&vpls) && !vpls.all_diffuse(), "{smooth} smooth VPLs");
+        let chunks = chunk_subsets(&vpls, &Interleave::new(&vpls, 1, 1));
+        let (mut pairs, mut smooth_pairs, mut dark) = (0, 0, 0);
+        for r in gbuf.receivers.iter().flatten() {
+            let pt = Prepared::new(&scene, r);
+            let Some(lambert) = pt.lambert.as_ref() else { continue };
+            for ch in &chunks[0] {
+                for (g_max, min_d2) in [(0.05, 0.0), (f32::INFINITY, 0.0), (f32::INFINITY, 0.5)] {
+                    let lc = lambert.unshadowed8(ch, pt.p, g_max, min_d2);
+                    for j in 0..ch.lanes.count_ones() as usize {
+                        let i = ch.index[j] as usize;
+                        let near = (vpls.position[i] - pt.p).length_squared() < min_d2;
+                        let general = unshadowed(&vpls, i, r, g_max).filter(|_| !near);
+                        assert_eq!(lc.lanes >> j & 1 != 0, general.is_some(), "lane {j}, VPL {i}");
+                        if let Some((c, full)) = general {
+                            let lane = |a: &[[f32; 8]; 3]| Vec3::new(a[0][j], a[1][j], a[2][j]);
+                            assert_eq!((lane(&lc.clamped), lane(&lc.full)), (c, full), "lane {j}, VPL {i}");
+                            pairs += 1;
+                            smooth_pairs += (ch.smooth_lanes >> j & 1) as usize;
+                        } else if ch.smooth_lanes >> j & 1 != 0 && !near {
+                            dark += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(smooth_pairs > 1_000 && pairs > 10_000, "{smooth_pairs} smooth pairs of {pairs}");
+        // Some smooth lanes face away from their lobe (the VPL sends nothing there).
+        assert!(dark > 0, "no smooth lane was dropped");
     }
 }

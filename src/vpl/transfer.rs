@@ -70,6 +70,10 @@ fn unshadowed_from(
         return None;
     }
     let le = radiance(-wi);
+    if le == Vec3::ZERO {
+        // The VPL sends nothing this way (its lobe's far side): no contribution, no shadow ray.
+        return None;
+    }
     let g = cos_v * cos_r / d2;
     let base = r.beta * le * f;
     Some((base * g.min(g_max), base * g))
