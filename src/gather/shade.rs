@@ -317,55 +317,95 @@ fn chunkable(vpls: &VplSet) -> bool {
 
 /// The VPLs of every interleave subset, eight to a chunk, in subset order.
 fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
-    inter
-        .subsets
-        .iter()
-        .map(|subset| {
-            subset
-                .chunks(F8::LANES)
-                .map(|ids| {
-                    let at = |f: &dyn Fn(usize) -> f32| F8::from_fn(|j| ids.get(j).map_or(0.0, |&i| f(i as usize)));
-                    let bits = |f: &dyn Fn(usize) -> bool| {
-                        ids.iter().enumerate().fold(0, |m, (j, &i)| m | (f(i as usize) as u32) << j)
-                    };
-                    let flag = |f: &dyn Fn(usize) -> bool| F8::mask_from_bits(bits(f));
-                    let lobe = |i: usize| lambert_lobe(vpls, i);
-                    let smooth_lanes = bits(&|i| lobe(i).is_some());
-                    // What `VplSet::radiance` multiplies by the shading correction: r · (ρ/π).
-                    let factor = |i: usize| match lobe(i) {
-                        Some((albedo, _, _)) => vpls.radiance[i] * (albedo * FRAC_1_PI),
-                        None => vpls.radiance[i],
-                    };
-                    let lobe_at = |f: &dyn Fn(&crate::bsdf::Bsdf, Vec3) -> f32| {
-                        at(&|i| lobe(i).map_or(0.0, |(_, b, wo)| f(b, wo)))
-                    };
-                    VplChunk {
-                        index: std::array::from_fn(|j| ids.get(j).copied().unwrap_or(0)),
-                        lanes: (1u32 << ids.len()) - 1,
-                        position: [
-                            at(&|i| vpls.position[i].x),
-                            at(&|i| vpls.position[i].y),
-                            at(&|i| vpls.position[i].z),
-                        ],
-                        normal: [at(&|i| vpls.normal[i].x), at(&|i| vpls.normal[i].y), at(&|i| vpls.normal[i].z)],
-                        radiance: [at(&|i| factor(i).x), at(&|i| factor(i).y), at(&|i| factor(i).z)],
-                        punctual: flag(&|i| vpls.normal[i] == Vec3::ZERO),
-                        two_sided: flag(&|i| vpls.flags[i] & TWO_SIDED != 0),
-                        smooth: F8::mask_from_bits(smooth_lanes),
-                        smooth_lanes,
-                        lobe_ns: [
-                            lobe_at(&|b, _| b.frame.n.x),
-                            lobe_at(&|b, _| b.frame.n.y),
-                            lobe_at(&|b, _| b.frame.n.z),
-                        ],
-                        lobe_ng: [lobe_at(&|b, _| b.ng.x), lobe_at(&|b, _| b.ng.y), lobe_at(&|b, _| b.ng.z)],
-                        wo_ns: lobe_at(&|b, wo| wo.dot(b.frame.n)),
-                        wo_ng: lobe_at(&|b, wo| wo.dot(b.ng)),
-                    }
-                })
-                .collect()
-        })
-        .collect()
+    inter.subsets.iter().map(|subset| subset.chunks(F8::LANES).map(|ids| VplChunk::new(vpls, ids)).collect()).collect()
+}
+
+impl VplChunk {
+    /// The VPLs `ids` (at most eight, each diffuse or with a Lambertian lobe) of `vpls` in lanes.
+    fn new(vpls: &VplSet, ids: &[u32]) -> Self {
+        debug_assert!(ids.len() <= F8::LANES);
+        let at = |f: &dyn Fn(usize) -> f32| F8::from_fn(|j| ids.get(j).map_or(0.0, |&i| f(i as usize)));
+        let bits =
+            |f: &dyn Fn(usize) -> bool| ids.iter().enumerate().fold(0, |m, (j, &i)| m | (f(i as usize) as u32) << j);
+        let flag = |f: &dyn Fn(usize) -> bool| F8::mask_from_bits(bits(f));
+        let lobe = |i: usize| lambert_lobe(vpls, i);
+        let smooth_lanes = bits(&|i| lobe(i).is_some());
+        // What `VplSet::radiance` multiplies by the shading correction: r · (ρ/π).
+        let factor = |i: usize| match lobe(i) {
+            Some((albedo, _, _)) => vpls.radiance[i] * (albedo * FRAC_1_PI),
+            None => vpls.radiance[i],
+        };
+        let lobe_at = |f: &dyn Fn(&crate::bsdf::Bsdf, Vec3) -> f32| at(&|i| lobe(i).map_or(0.0, |(_, b, wo)| f(b, wo)));
+        VplChunk {
+            index: std::array::from_fn(|j| ids.get(j).copied().unwrap_or(0)),
+            lanes: (1u32 << ids.len()) - 1,
+            position: [at(&|i| vpls.position[i].x), at(&|i| vpls.position[i].y), at(&|i| vpls.position[i].z)],
+            normal: [at(&|i| vpls.normal[i].x), at(&|i| vpls.normal[i].y), at(&|i| vpls.normal[i].z)],
+            radiance: [at(&|i| factor(i).x), at(&|i| factor(i).y), at(&|i| factor(i).z)],
+            punctual: flag(&|i| vpls.normal[i] == Vec3::ZERO),
+            two_sided: flag(&|i| vpls.flags[i] & TWO_SIDED != 0),
+            smooth: F8::mask_from_bits(smooth_lanes),
+            smooth_lanes,
+            lobe_ns: [lobe_at(&|b, _| b.frame.n.x), lobe_at(&|b, _| b.frame.n.y), lobe_at(&|b, _| b.frame.n.z)],
+            lobe_ng: [lobe_at(&|b, _| b.ng.x), lobe_at(&|b, _| b.ng.y), lobe_at(&|b, _| b.ng.z)],
+            wo_ns: lobe_at(&|b, wo| wo.dot(b.frame.n)),
+            wo_ng: lobe_at(&|b, wo| wo.dot(b.ng)),
+        }
+    }
+}
+
+/// Up to eight VPLs of a set evaluated together at one receiver: MIR's probe normalisation
+/// measures eight VPLs per pass over its probes with the gather's eight-lane kernel (the
+/// general kernels for receivers or VPLs outside it), with the same bits as
+/// [`Prepared::unshadowed`] per VPL.
+pub(crate) struct VplLanes {
+    /// The eight-lane form, when every VPL fits it.
+    chunk: Option<VplChunk>,
+    len: usize,
+}
+
+impl VplLanes {
+    /// The whole of `set` (at most eight VPLs) in lanes; lane j is VPL j.
+    pub(crate) fn new(set: &VplSet) -> Self {
+        assert!(set.len() <= F8::LANES, "at most eight VPLs in lanes");
+        let ids: Vec<u32> = (0..set.len() as u32).collect();
+        VplLanes { chunk: chunkable(set).then(|| VplChunk::new(set, &ids)), len: set.len() }
+    }
+
+    /// Calls `f(j, contribution, origin, target)` for every lane j of `active` whose VPL has a
+    /// nonzero unshadowed contribution at `r` (clamped at `g_max`), in lane order.
+    #[inline]
+    pub(crate) fn each_unshadowed(
+        &self,
+        set: &VplSet,
+        pt: &Prepared,
+        r: &Receiver,
+        active: u32,
+        g_max: f32,
+        mut f: impl FnMut(usize, Vec3, Vec3, Vec3),
+    ) {
+        let active = active & ((1u32 << self.len) - 1);
+        if let (Some(ch), Some(l)) = (&self.chunk, &pt.lambert) {
+            let lc = l.unshadowed8(ch, pt.p, g_max, 0.0);
+            let mut m = lc.lanes & active;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let target = set.position[j];
+                let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
+                f(j, c, pt.origin_towards(target), target);
+            }
+        } else {
+            let mut m = active;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if let Some((c, o, target)) = pt.unshadowed(r, set, j, g_max) {
+                    f(j, c, o, target);
+                }
+            }
+        }
+    }
 }
 
 /// Clamped and unclamped contributions of up to eight VPLs, and the lanes where they are nonzero.
@@ -749,5 +789,92 @@ mod tests {
         assert!(smooth_pairs > 1_000 && pairs > 10_000, "{smooth_pairs} smooth pairs of {pairs}");
         // Some smooth lanes face away from their lobe (the VPL sends nothing there).
         assert!(dark > 0, "no smooth lane was dropped");
+    }
+
+    /// [`VplLanes::each_unshadowed`] reports, for the lanes asked for, exactly the VPLs and the
+    /// bits [`Prepared::unshadowed`] gives one VPL at a time: eight-lane sets of diffuse and
+    /// smooth Lambertian VPLs, a short set, and a set with a spot VPL (the general kernels).
+    #[test]
+    fn vpl_lanes_give_each_vpl_what_it_gives_alone() {
+        let mut desc = builtin::glass_sphere();
+        for m in &mut desc.materials {
+            if m.name == "glass" {
+                m.scatter = crate::load::desc::ScatterDesc::Diffuse;
+            }
+        }
+        let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let mut camera = scene.camera.clone();
+        (camera.width, camera.height) = (24, 24);
+        let mut st = RayStats::default();
+        let gbuf = super::super::gbuffer::trace(
+            &scene,
+            &accel,
+            &camera,
+            1,
+            true,
+            4,
+            Tracing::PrimaryPackets,
+            GBuffer::default(),
+            &mut st,
+        );
+        let (all, _) = Sir::new(4).sample(&scene, &accel, &camera, 1024, 9);
+        // Sets of eight with smooth VPLs among them, a set of five, and a set with a spot.
+        let smooth: Vec<usize> = (0..all.len()).filter(|&i| lambert_lobe(&all, i).is_some()).collect();
+        let plain: Vec<usize> = (0..all.len()).filter(|&i| all.lobe[i] == crate::vpl::set::NO_LOBE).collect();
+        assert!(smooth.len() >= 8 && plain.len() >= 8);
+        let pick = |ids: &[usize]| {
+            let mut set = VplSet::default();
+            for &i in ids {
+                set.push(crate::vpl::set::Vpl {
+                    position: all.position[i],
+                    normal: all.normal[i],
+                    radiance: all.radiance[i],
+                    lobe: match all.lobe[i] {
+                        crate::vpl::set::NO_LOBE => None,
+                        l => Some(all.lobes[l as usize]),
+                    },
+                    count: 1,
+                    flags: all.flags[i],
+                    length: all.length[i],
+                    group: 0,
+                });
+            }
+            set
+        };
+        let mixed = [smooth[0], plain[0], smooth[1], plain[1], plain[2], smooth[2], plain[3], smooth[3]];
+        let mut with_spot = pick(&plain[..7]);
+        let spot = Vec3::new(2.0, 4.5, 2.5);
+        with_spot.push(crate::vpl::set::Vpl {
+            position: spot,
+            normal: Vec3::ZERO,
+            radiance: Vec3::splat(3.0),
+            lobe: Some(VplLobe::Spot { axis: -Vec3::Y, cos_inner: 0.9, cos_outer: 0.5 }),
+            count: 1,
+            flags: crate::vpl::set::ON_LIGHT,
+            length: 0,
+            group: 0,
+        });
+        let mut reported = 0;
+        for (set, eight_lane) in
+            [(pick(&mixed), true), (pick(&smooth[4..12]), true), (pick(&plain[..5]), true), (with_spot, false)]
+        {
+            let lanes = VplLanes::new(&set);
+            assert_eq!(lanes.chunk.is_some(), eight_lane);
+            for r in gbuf.receivers.iter().flatten() {
+                let pt = Prepared::new(&scene, r);
+                for active in [0xff, 0b1010_0101, 0b1] {
+                    let mut got = Vec::new();
+                    lanes.each_unshadowed(&set, &pt, r, active, 0.05, |j, c, o, t| got.push((j, c, o, t)));
+                    let want: Vec<_> = (0..set.len())
+                        .filter(|&j| active >> j & 1 != 0)
+                        .filter_map(|j| pt.unshadowed(r, &set, j, 0.05).map(|(c, o, t)| (j, c, o, t)))
+                        .collect();
+                    assert_eq!(got, want);
+                    reported += got.len();
+                }
+            }
+        }
+        assert!(reported > 1_000, "only {reported} contributions");
     }
 }

@@ -37,7 +37,7 @@ use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
 use crate::accel::Accel;
 use crate::color::luminance;
-use crate::gather::shade::{Prepared, ShadowBatch};
+use crate::gather::shade::{Prepared, ShadowBatch, VplLanes};
 use crate::sampling::{Distribution1D, IndependentSampler, Pcg32, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -426,6 +426,43 @@ fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
     batch
 }
 
+/// A VPL location's probe sums: Σ y, Σ y², probes traced, probes that saw it.
+#[derive(Clone, Copy, Debug, Default)]
+struct ProbeSums {
+    sum: f64,
+    sum2: f64,
+    rays_used: usize,
+    hits: usize,
+}
+
+impl ProbeSums {
+    fn add(&mut self, y: f64) {
+        self.sum += y;
+        self.sum2 += y * y;
+        self.hits += (y > 0.0) as usize;
+    }
+
+    /// The VPL `vpl` (location `group`, `k` chain states, power `p_i`) with its radiance scaled
+    /// by P_i / P'_i (module doc); None when no probe saw it or P_i is not finite.
+    fn scaled(&self, vpl: Vpl, group: u32, k: u64, p_i: f64, npix: f64) -> Option<Vpl> {
+        let kk = self.rays_used.max(1) as f64;
+        let mean = self.sum / kk;
+        let response = mean * npix;
+        if !(response > 0.0) || !p_i.is_finite() {
+            return None;
+        }
+        // 1/P' with its second-order bias removed: E[1/X] ≈ 1/μ + σ²/μ³ for the estimate X of
+        // μ, so 1/X − σ̂²/X³ (σ̂² the variance of the mean), never below ½/X.
+        let var_mean = ((self.sum2 / kk - mean * mean).max(0.0) / kk) * npix * npix;
+        let inv = (1.0 / response) * (1.0 - var_mean / (response * response)).max(0.5);
+        let mut v = vpl;
+        v.radiance *= (p_i * inv) as f32;
+        v.count = k as u32;
+        v.group = group;
+        Some(v)
+    }
+}
+
 /// One batch of camera probes.
 struct ProbeBatch {
     /// The probes that found a receiver, prepared as the gather prepares its pixels.
@@ -552,65 +589,64 @@ impl<K: MutationKernel> Mir<K> {
         let min_hits = self.settings.min_probe_hits;
         // P' with the chains' own target bound (see `mirpath::TARGET_CLAMP`).
         let g_target = crate::vpl::mirpath::target_g_bound(scene);
-        let scaled: Vec<(Option<Vpl>, RayStats)> = locations
-            .par_iter()
-            .enumerate()
-            .map(|(i, (s, k))| {
+        // Each location's probe sums, eight locations per pass over the probes (one VPL per
+        // lane of the gather's kernel). A location takes probe batches until enough of its
+        // probes see it (or all batches are used); its sums run in probe order, as if it were
+        // measured alone.
+        let measured: Vec<(Vec<ProbeSums>, RayStats)> = locations
+            .par_chunks(8)
+            .map(|chunk| {
                 let mut st = RayStats::default();
-                let mut one = VplSet::default();
-                one.push(s.vpl);
-                // Probe batches until enough probes see the VPL (or all batches are used).
-                let (mut sum, mut sum2, mut rays_used, mut hits) = (0.0f64, 0.0f64, 0usize, 0usize);
-                // Neighbouring probes are blocked by the same leaf: a shadow cache for this VPL.
-                let mut hint = [crate::accel::single::NO_OCCLUDER];
-                // Shadow rays set up eight at a time; unblocked ones add their luminance in
-                // probe order (blocked and dark probes add zero).
-                let mut rays = ShadowBatch::<f64>::new();
+                let mut set = VplSet::default();
+                for (s, _) in chunk {
+                    set.push(s.vpl);
+                }
+                let lanes = VplLanes::new(&set);
+                let mut sums = vec![ProbeSums::default(); chunk.len()];
+                // Neighbouring probes are blocked by the same leaf: a shadow cache per VPL.
+                let mut hints = [crate::accel::single::NO_OCCLUDER; 8];
+                // Shadow rays set up eight at a time; unblocked ones add their luminance to
+                // their VPL's sums (blocked and dark probes add zero).
+                let mut rays = ShadowBatch::<(u32, f64)>::new();
+                let mut active = (1u32 << chunk.len()) - 1;
                 for b in 0..batches {
-                    let ProbeBatch { receivers, rays: count, .. } = batch(b);
-                    let mut add = |y: f64| {
-                        sum += y;
-                        sum2 += y * y;
-                        hits += (y > 0.0) as usize;
-                    };
-                    for (r, pt) in receivers {
-                        if let Some((c, o, target)) = pt.unshadowed(r, &one, 0, g_target) {
-                            let y = luminance(c) as f64;
-                            rays.push(o, target, 0, y, accel, &mut hint, &mut st, &mut add);
-                        }
-                    }
-                    rays.trace(accel, &mut hint, &mut st, &mut add);
-                    rays_used += count;
-                    if hits >= min_hits {
+                    if active == 0 {
                         break;
                     }
+                    let ProbeBatch { receivers, rays: count, .. } = batch(b);
+                    let mut add = |(j, y): (u32, f64)| sums[j as usize].add(y);
+                    for (r, pt) in receivers {
+                        lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c, o, target| {
+                            let y = luminance(c) as f64;
+                            rays.push(o, target, j as u32, (j as u32, y), accel, &mut hints, &mut st, &mut add);
+                        });
+                    }
+                    rays.trace(accel, &mut hints, &mut st, &mut add);
+                    let measuring = active;
+                    for (j, p) in sums.iter_mut().enumerate().filter(|(j, _)| measuring >> j & 1 != 0) {
+                        p.rays_used += count;
+                        if p.hits >= min_hits {
+                            active &= !(1 << j);
+                        }
+                    }
                 }
-                let kk = rays_used.max(1) as f64;
-                let mean = sum / kk;
-                let response = mean * npix;
-                let p_i = *k as f64 * pc / n_states as f64;
-                if !(response > 0.0) || !p_i.is_finite() {
-                    return (None, st);
-                }
-                // 1/P' with its second-order bias removed: E[1/X] ≈ 1/μ + σ²/μ³ for the
-                // estimate X of μ, so 1/X − σ̂²/X³ (σ̂² the variance of the mean), never below ½/X.
-                let var_mean = ((sum2 / kk - mean * mean).max(0.0) / kk) * npix * npix;
-                let inv = (1.0 / response) * (1.0 - var_mean / (response * response)).max(0.5);
-                let mut v = s.vpl;
-                v.radiance *= (p_i * inv) as f32;
-                v.count = *k as u32;
-                v.group = i as u32;
-                (Some(v), st)
+                (sums, st)
             })
             .collect();
+        let mut scaled: Vec<Option<Vpl>> = Vec::with_capacity(locations.len());
+        for (sums, st) in &measured {
+            rays += *st;
+            for p in sums {
+                let (i, (s, k)) = (scaled.len(), &locations[scaled.len()]);
+                scaled.push(p.scaled(s.vpl, i as u32, *k, *k as f64 * pc / n_states as f64, npix));
+            }
+        }
         for b in probe_sets.iter().filter_map(OnceLock::get) {
             rays += b.stats;
         }
-        let mut scaled = scaled;
-        (report.capped, report.capped_share) = cap_radiance(scaled.iter_mut().filter_map(|(v, _)| v.as_mut()));
+        (report.capped, report.capped_share) = cap_radiance(scaled.iter_mut().filter_map(|v| v.as_mut()));
         let mut set = VplSet::default();
-        for ((v, st), (s, k)) in scaled.into_iter().zip(&locations) {
-            rays += st;
+        for (v, (s, k)) in scaled.into_iter().zip(&locations) {
             if let Some(v) = v {
                 set.push(v);
                 report.power_by_light[s.source_light() as usize] += *k as f64 * pc / n_states as f64;
