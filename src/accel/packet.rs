@@ -23,7 +23,9 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::single::{CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, closest, occluded_from_parts, prefetch_ref};
+use super::single::{
+    CULL_SLACK, CanonicalRay, NO_OCCLUDER, ROBUST, SpillStack, closest, occluded_from_parts, prefetch_ref,
+};
 use super::triangle::{ShearPacket, TriBlock, intersect_packet};
 use super::wide::{EMPTY, LEAF_BIT, Node, WideBvh, leaf_parts, octant};
 use super::{Accel, Hit};
@@ -275,8 +277,12 @@ impl<F: Lanes> CanonicalPacket<F> {
     }
 }
 
-/// Capacity of the array stack of packet traversals (trees needing more use a `Vec`).
+/// Capacity of the array stacks of the lane-wise packet traversals ([`lanewise`]).
 const STACK: usize = 128;
+
+/// Array entries of the frustum traversals' stacks (beyond them a traversal spills into the
+/// heap): a 128-entry array was zeroed for every packet, 1.5 KB of stores per 8 rays.
+const SPILL_AT: usize = 32;
 
 impl Accel {
     /// Closest hits of the rays of `packet` (world space, as [`Accel::intersect`] per lane).
@@ -284,10 +290,7 @@ impl Accel {
         let p = CanonicalPacket::new(self, packet);
         let (hit, t, tri_bits, b1, b2) = match p.forward_frustum() {
             None => closest_lanes(&self.wide, &p),
-            Some(f) if self.wide.stack_need() <= STACK => {
-                closest_frustum(&self.wide, &p, &f, &mut ArrayStack3::<STACK>::new())
-            }
-            Some(f) => closest_frustum(&self.wide, &p, &f, &mut Vec::with_capacity(self.wide.stack_need())),
+            Some(f) => closest_frustum(&self.wide, &p, &f, &mut SpillStack::<_, SPILL_AT>::new((0, 0.0, 0))),
         };
         PacketHits { hit, t: t * p.to_param, tri_bits, b1, b2 }
     }
@@ -298,11 +301,8 @@ impl Accel {
         let p = CanonicalPacket::new(self, packet);
         match p.segment_frustum() {
             None => occluded_lanes(&self.wide, &p),
-            Some((f, length)) if self.wide.stack_need() <= STACK => {
-                occluded_frustum(&self.wide, &p, &f, length, &mut ArrayStack3::<STACK>::new())
-            }
             Some((f, length)) => {
-                occluded_frustum(&self.wide, &p, &f, length, &mut Vec::with_capacity(self.wide.stack_need()))
+                occluded_frustum(&self.wide, &p, &f, length, &mut SpillStack::<_, SPILL_AT>::new((0, 0.0, 0)))
             }
         }
     }
@@ -383,42 +383,14 @@ trait Stack3 {
     fn pop(&mut self) -> Option<(u32, f32, u32)>;
 }
 
-struct ArrayStack3<const N: usize> {
-    items: [(u32, f32, u32); N],
-    len: usize,
-}
-
-impl<const N: usize> ArrayStack3<N> {
-    #[inline(always)]
-    fn new() -> Self {
-        ArrayStack3 { items: [(0, 0.0, 0); N], len: 0 }
-    }
-}
-
-impl<const N: usize> Stack3 for ArrayStack3<N> {
+impl<const N: usize> Stack3 for SpillStack<(u32, f32, u32), N> {
     #[inline(always)]
     fn push(&mut self, e: (u32, f32, u32)) {
-        self.items[self.len] = e;
-        self.len += 1;
+        self.push_item(e);
     }
     #[inline(always)]
     fn pop(&mut self) -> Option<(u32, f32, u32)> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        Some(self.items[self.len])
-    }
-}
-
-impl Stack3 for Vec<(u32, f32, u32)> {
-    #[inline(always)]
-    fn push(&mut self, e: (u32, f32, u32)) {
-        Vec::push(self, e);
-    }
-    #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, f32, u32)> {
-        Vec::pop(self)
+        self.pop_item()
     }
 }
 
