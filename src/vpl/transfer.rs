@@ -88,8 +88,9 @@ pub fn shadow_segment(scene: &Scene, set: &VplSet, i: usize, r: &Receiver) -> (V
     (origin, target - origin)
 }
 
-/// Fraction of a shadow segment that is tested (the VPL's own surface is not an occluder).
-pub const SHADOW_T_MAX: f32 = 1.0 - 1e-4;
+/// Fraction of a shadow segment that is tested (the VPL's own surface is not an occluder): the
+/// one constant of [`crate::accel`], re-exported beside the segment builders.
+pub use crate::accel::SHADOW_T_MAX;
 
 /// Contribution of VPL `i` to `r` with visibility, clamped at `g_max` (single rays).
 pub fn contribution(
