@@ -120,17 +120,13 @@ impl PlaneFrustum {
         let sum = Vec3::new(dir.x.sum_lanes(active), dir.y.sum_lanes(active), dir.z.sum_lanes(active));
         let c = sum.try_normalize()?;
         let (u, v) = c.any_orthonormal_pair();
-        let (mut a_lo, mut a_hi, mut b_lo, mut b_hi) =
-            (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
         let (du, dv, dc) = (dir.dot(&Vec3x::splat(u)), dir.dot(&Vec3x::splat(v)), dir.dot(&Vec3x::splat(c)));
         if dc.min_lanes(active) < 0.7 {
             return None;
         }
-        let (a, b) = ((du / dc).to_array(), (dv / dc).to_array());
-        for i in (0..F::LANES).filter(|i| active >> i & 1 != 0) {
-            (a_lo, a_hi) = (a_lo.min(a.as_ref()[i]), a_hi.max(a.as_ref()[i]));
-            (b_lo, b_hi) = (b_lo.min(b.as_ref()[i]), b_hi.max(b.as_ref()[i]));
-        }
+        let (a, b) = (du / dc, dv / dc);
+        let (a_lo, a_hi, b_lo, b_hi) =
+            (a.min_lanes(active), a.max_lanes(active), b.min_lanes(active), b.max_lanes(active));
         // A wide cone culls little and the traversal would visit most of the tree: beyond
         // ~11° (slopes spanning more than 0.2) the lanes are traced one by one instead.
         if (a_hi - a_lo).max(b_hi - b_lo) > MAX_SLOPE_SPAN {
@@ -373,8 +369,7 @@ impl<F: Lanes> CanonicalPacket<F> {
 /// The largest lane of `t` among `lanes` (−∞ when none).
 #[inline(always)]
 fn max_lane<F: Lanes>(t: F, lanes: u32) -> f32 {
-    let a = t.to_array();
-    a.as_ref().iter().enumerate().filter(|(i, _)| lanes >> i & 1 != 0).fold(f32::NEG_INFINITY, |m, (_, &x)| m.max(x))
+    t.max_lanes(lanes)
 }
 
 /// A traversal stack of (reference, entry distance, lanes).

@@ -117,20 +117,37 @@ pub trait Lanes:
     #[inline(always)]
     fn min_lanes(self, bits: u32) -> f32 {
         let a = Self::mask_from_bits(bits).select(self, Self::splat(f32::INFINITY)).to_array();
-        a.as_ref().iter().fold(f32::INFINITY, |m, &x| m.min(x))
+        tree_reduce(a, |x, y| if y < x { y } else { x })
     }
     /// Largest of the lanes selected by `bits` (−∞ when none).
     #[inline(always)]
     fn max_lanes(self, bits: u32) -> f32 {
         let a = Self::mask_from_bits(bits).select(self, Self::splat(f32::NEG_INFINITY)).to_array();
-        a.as_ref().iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x))
+        tree_reduce(a, |x, y| if y > x { y } else { x })
     }
     /// Sum of the lanes selected by `bits`.
     #[inline(always)]
     fn sum_lanes(self, bits: u32) -> f32 {
-        let a = self.to_array();
-        a.as_ref().iter().enumerate().filter(|(i, _)| bits >> i & 1 != 0).map(|(_, x)| x).sum()
+        tree_reduce(Self::mask_from_bits(bits).select(self, Self::splat(0.0)).to_array(), |x, y| x + y)
     }
+}
+
+/// Folds the lanes of `a` pairwise (lane i with lane i + n/2, then again on the first half):
+/// log₂ n dependent steps and no branch per lane. The minimum and maximum compare plainly (a NaN
+/// lane is not skipped as by `f32::min`; their callers, the packet frusta, see no NaN: inactive
+/// lanes are masked first), and the sum rounds in another order than a left-to-right sum (the
+/// frusta are conservative either way).
+#[inline(always)]
+fn tree_reduce<A: AsMut<[f32]>>(mut a: A, f: impl Fn(f32, f32) -> f32) -> f32 {
+    let s = a.as_mut();
+    let mut n = s.len();
+    while n > 1 {
+        n /= 2;
+        for i in 0..n {
+            s[i] = f(s[i], s[i + n]);
+        }
+    }
+    s[0]
 }
 
 macro_rules! impl_lanes {
