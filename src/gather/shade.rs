@@ -666,27 +666,49 @@ mod tests {
     use crate::vpl::VplSampler;
     use crate::vpl::sir::Sir;
 
-    /// The prepared receivers give the bits of the general kernels: every (receiver, VPL) pair
-    /// of a Cornell-box frame (Lambertian receivers, diffuse VPLs on walls and the light).
-    #[test]
-    fn prepared_receivers_match_the_general_kernels_bit_for_bit() {
-        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+    /// The glass-sphere box with its sphere made a matte, smooth-shaded Lambertian (VPLs on it
+    /// carry a lobe with a shading correction).
+    fn matte_sphere() -> crate::load::desc::SceneDesc {
+        let mut desc = builtin::glass_sphere();
+        for m in &mut desc.materials {
+            if m.name == "glass" {
+                m.scatter = crate::load::desc::ScatterDesc::Diffuse;
+                m.base_color = Vec3::new(0.7, 0.6, 0.5);
+            }
+        }
+        desc
+    }
+
+    /// `desc`'s scene, its BVH, its camera at w×h and a G-buffer traced with `seed`.
+    fn traced(
+        desc: crate::load::desc::SceneDesc,
+        (w, h): (u32, u32),
+        seed: u64,
+    ) -> (Scene, Accel, crate::scene::Camera, GBuffer) {
+        let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
         let accel = Accel::build(&scene.mesh);
         let mut camera = scene.camera.clone();
-        camera.width = 48;
-        camera.height = 48;
+        (camera.width, camera.height) = (w, h);
         let mut st = RayStats::default();
         let gbuf = super::super::gbuffer::trace(
             &scene,
             &accel,
             &camera,
-            7,
+            seed,
             true,
             4,
             Tracing::PrimaryPackets,
             GBuffer::default(),
             &mut st,
         );
+        (scene, accel, camera, gbuf)
+    }
+
+    /// The prepared receivers give the bits of the general kernels: every (receiver, VPL) pair
+    /// of a Cornell-box frame (Lambertian receivers, diffuse VPLs on walls and the light).
+    #[test]
+    fn prepared_receivers_match_the_general_kernels_bit_for_bit() {
+        let (scene, accel, camera, gbuf) = traced(builtin::cornell(), (48, 48), 7);
         let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 64, 11);
         assert!(vpls.all_diffuse() && vpls.len() >= 64);
         let mut pairs = 0;
@@ -734,30 +756,7 @@ mod tests {
     /// set exactly when the general kernel gives a contribution, and then it is the same.
     #[test]
     fn smooth_lambert_vpls_match_the_general_kernel_bit_for_bit() {
-        let mut desc = builtin::glass_sphere();
-        for m in &mut desc.materials {
-            if m.name == "glass" {
-                m.scatter = crate::load::desc::ScatterDesc::Diffuse;
-                m.base_color = Vec3::new(0.7, 0.6, 0.5);
-            }
-        }
-        let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
-        let accel = Accel::build(&scene.mesh);
-        let mut camera = scene.camera.clone();
-        camera.width = 32;
-        camera.height = 32;
-        let mut st = RayStats::default();
-        let gbuf = super::super::gbuffer::trace(
-            &scene,
-            &accel,
-            &camera,
-            3,
-            true,
-            4,
-            Tracing::PrimaryPackets,
-            GBuffer::default(),
-            &mut st,
-        );
+        let (scene, accel, camera, gbuf) = traced(matte_sphere(), (32, 32), 3);
         let (vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 2048, 5);
         let smooth = (0..vpls.len()).filter(|&i| lambert_lobe(&vpls, i).is_some()).count();
         assert!(smooth >= 20 && chunkable(&vpls) && !vpls.all_diffuse(), "{smooth} smooth VPLs");
@@ -796,28 +795,7 @@ mod tests {
     /// smooth Lambertian VPLs, a short set, and a set with a spot VPL (the general kernels).
     #[test]
     fn vpl_lanes_give_each_vpl_what_it_gives_alone() {
-        let mut desc = builtin::glass_sphere();
-        for m in &mut desc.materials {
-            if m.name == "glass" {
-                m.scatter = crate::load::desc::ScatterDesc::Diffuse;
-            }
-        }
-        let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
-        let accel = Accel::build(&scene.mesh);
-        let mut camera = scene.camera.clone();
-        (camera.width, camera.height) = (24, 24);
-        let mut st = RayStats::default();
-        let gbuf = super::super::gbuffer::trace(
-            &scene,
-            &accel,
-            &camera,
-            1,
-            true,
-            4,
-            Tracing::PrimaryPackets,
-            GBuffer::default(),
-            &mut st,
-        );
+        let (scene, accel, camera, gbuf) = traced(matte_sphere(), (24, 24), 1);
         let (all, _) = Sir::new(4).sample(&scene, &accel, &camera, 1024, 9);
         // Sets of eight with smooth VPLs among them, a set of five, and a set with a spot.
         let smooth: Vec<usize> = (0..all.len()).filter(|&i| lambert_lobe(&all, i).is_some()).collect();
