@@ -294,8 +294,8 @@ struct VplChunk {
     wo_ng: F8,
 }
 
-/// The albedo of VPL `i` when its lobe is a Lambertian surface (None: diffuse VPL or another
-/// lobe).
+/// The albedo, BSDF and `wo` of VPL `i`'s lobe when it is a Lambertian surface (None: a diffuse
+/// VPL, or another lobe).
 fn lambert_lobe(vpls: &VplSet, i: usize) -> Option<(Vec3, &crate::bsdf::Bsdf, Vec3)> {
     match vpls.lobe[i] {
         crate::vpl::set::NO_LOBE => None,
