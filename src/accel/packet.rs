@@ -366,12 +366,6 @@ impl<F: Lanes> CanonicalPacket<F> {
     }
 }
 
-/// The largest lane of `t` among `lanes` (−∞ when none).
-#[inline(always)]
-fn max_lane<F: Lanes>(t: F, lanes: u32) -> f32 {
-    t.max_lanes(lanes)
-}
-
 /// A traversal stack of (reference, entry distance, lanes).
 trait Stack3 {
     fn push(&mut self, e: (u32, f32, u32));
@@ -499,7 +493,7 @@ fn closest_frustum<F: Lanes>(
     let mut best = Closest { t: p.t_max, id: F::splat_bits(EMPTY), b1: F::splat(0.0), b2: F::splat(0.0) };
     let mut found = 0u32;
     let mut t_cull = CanonicalPacket::<F>::cull(best.t);
-    let mut cull_max = max_lane(t_cull, p.active);
+    let mut cull_max = t_cull.max_lanes(p.active);
     let mut cur = (p.active != 0).then_some((bvh.root, p.active));
     loop {
         while let Some((r, lanes)) = cur {
@@ -513,7 +507,7 @@ fn closest_frustum<F: Lanes>(
             found |= bits;
             if bits != 0 {
                 t_cull = CanonicalPacket::<F>::cull(best.t);
-                cull_max = max_lane(t_cull, p.active);
+                cull_max = t_cull.max_lanes(p.active);
             }
             cur = None;
         }
@@ -546,7 +540,7 @@ fn occluded_frustum<F: Lanes>(
     let mut alive = p.active;
     // The frustum's culling distance: the lanes' (shrinking as lanes are blocked), or the
     // reversed frustum's fixed length.
-    let frustum_cull = |t_cull: F, alive: u32| reversed_length.unwrap_or_else(|| max_lane(t_cull, alive));
+    let frustum_cull = |t_cull: F, alive: u32| reversed_length.unwrap_or_else(|| t_cull.max_lanes(alive));
     let mut cull_max = frustum_cull(t_cull, alive);
     let mut cur = (alive != 0).then_some((bvh.root, alive));
     loop {

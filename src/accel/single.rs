@@ -197,9 +197,9 @@ impl<const N: usize> Stack for ArrayStack<N> {
     }
 }
 
-/// A traversal stack whose first `N` entries live in an array and any further ones in a `Vec`. The array
-/// is zeroed for every ray (safe Rust cannot leave it uninitialised), so it is kept small: a
-/// tree's worst case ([`WideBvh::stack_need`], 7 entries per level) is rarely approached, and a
+/// A traversal stack whose first `N` entries live in an array and any further ones in a `Vec`.
+/// The array is zeroed for every ray (safe Rust cannot leave it uninitialised), so it is kept
+/// small: a tree's worst case ([`WideBvh::stack_need`], 7 entries per level) is rarely approached, and a
 /// traversal that goes deeper spills into the heap instead of every ray zeroing room for it.
 /// (Large trees zeroed a 128-entry, 1 KiB array per ray: 2.4 % of a Sponza frame, measured.)
 pub(crate) struct SpillStack<T: Copy, const N: usize> {
@@ -249,7 +249,9 @@ impl<const N: usize> Stack for SpillStack<(u32, f32), N> {
         if self.len <= N {
             sort_desc(&mut self.items[self.len - n..self.len]);
         } else {
-            // The top entries straddle the array and the spill: sort a copy (rare).
+            // The top entries straddle the array and the spill: sort a copy (rare). A node has
+            // at most eight children, so at most eight entries are sorted.
+            debug_assert!(n <= 8);
             let mut top = [(0u32, 0.0f32); 8];
             let n = n.min(8);
             for slot in top[..n].iter_mut().rev() {
