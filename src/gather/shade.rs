@@ -525,8 +525,13 @@ impl<'a> Gatherer<'a> {
         let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
         let w = receivers.len() as u32;
         let mut st = RayStats::default();
-        let row_points: Vec<Option<Prepared>> =
-            receivers.iter().map(|r| r.as_ref().map(|r| Prepared::new(scene, r))).collect();
+        // The packet groupings visit pixels out of order: their receivers are prepared first.
+        let row_points: Vec<Option<Prepared>> = match self.tracing {
+            Tracing::SharedOrigin | Tracing::SharedEnd => {
+                receivers.iter().map(|r| r.as_ref().map(|r| Prepared::new(scene, r))).collect()
+            }
+            Tracing::Single | Tracing::PrimaryPackets => Vec::new(),
+        };
         let candidate = |x: u32, i: usize| {
             let r = receivers[x as usize].as_ref()?;
             self.candidate(row_points[x as usize].as_ref()?, r, x, i)
@@ -543,8 +548,12 @@ impl<'a> Gatherer<'a> {
                 // Pixel, clamped and unclamped contribution of each queued ray.
                 let mut batch = ShadowBatch::<(u32, Vec3, Vec3)>::new();
                 for x in 0..w {
+                    // Prepared here, pixel by pixel: collected into a row first, each one was
+                    // copied through memory (measured in benches/results/2026-12-01-view.md).
+                    let Some(r) = &receivers[x as usize] else { continue };
+                    let pt = Prepared::new(scene, r);
                     // Lambertian receiver, diffuse or Lambertian-lobe VPLs: eight VPLs at a time.
-                    if let (Some(chunks), Some(pt)) = (&self.chunks, &row_points[x as usize])
+                    if let Some(chunks) = &self.chunks
                         && let Some(l) = &pt.lambert
                     {
                         if l.f == Vec3::ZERO {
@@ -574,7 +583,7 @@ impl<'a> Gatherer<'a> {
                     }
                     // Any other receiver or VPL: the general kernels, the same batched rays.
                     for &i in &inter.subsets[inter.subset_of(x, y)] {
-                        if let Some((x, c, full, o, _)) = candidate(x, i as usize) {
+                        if let Some((x, c, full, o, _)) = self.candidate(&pt, r, x, i as usize) {
                             let add = |(x, c, full)| acc.add_light(x, c, full);
                             let target = vpls.position[i as usize];
                             batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
