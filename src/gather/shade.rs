@@ -392,8 +392,7 @@ impl VplLanes {
                 let j = m.trailing_zeros() as usize;
                 m &= m - 1;
                 let target = set.position[j];
-                let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
-                f(j, c, pt.origin_towards(target), target);
+                f(j, lc.lane(j).0, pt.origin_towards(target), target);
             }
         } else {
             let mut m = active;
@@ -411,8 +410,20 @@ impl VplLanes {
 /// Clamped and unclamped contributions of up to eight VPLs, and the lanes where they are nonzero.
 struct LaneContributions {
     lanes: u32,
-    clamped: [[f32; 8]; 3],
-    full: [[f32; 8]; 3],
+    /// Per lane: the clamped contribution's r, g, b, then the unclamped one's (transposed from
+    /// the kernel's channel vectors, so a lane is read from one store: read across the channel
+    /// arrays, its values were merged into one wide load spanning two stores still in flight,
+    /// which stalled the gather).
+    by_lane: [[f32; 8]; 8],
+}
+
+impl LaneContributions {
+    /// The clamped and unclamped contribution of lane `j`.
+    #[inline(always)]
+    fn lane(&self, j: usize) -> (Vec3, Vec3) {
+        let v = &self.by_lane[j];
+        (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]))
+    }
 }
 
 impl LambertReceiver {
@@ -463,11 +474,8 @@ impl LambertReceiver {
         valid = valid.and_not(le[0].eq(zero).and(le[1].eq(zero)).and(le[2].eq(zero)));
         let base = |k: usize| F8::splat(self.beta[k]) * le[k] * F8::splat(self.f[k]);
         let (b0, b1, b2) = (base(0), base(1), base(2));
-        LaneContributions {
-            lanes: valid.bitmask(),
-            clamped: [(b0 * g_c).to_array(), (b1 * g_c).to_array(), (b2 * g_c).to_array()],
-            full: [(b0 * g).to_array(), (b1 * g).to_array(), (b2 * g).to_array()],
-        }
+        let by_lane = F8::transpose([b0 * g_c, b1 * g_c, b2 * g_c, b0 * g, b1 * g, b2 * g, zero, zero]);
+        LaneContributions { lanes: valid.bitmask(), by_lane: by_lane.map(|v| v.to_array()) }
     }
 }
 
@@ -573,8 +581,7 @@ impl<'a> Gatherer<'a> {
                                 let i = ch.index[j];
                                 let target = vpls.position[i as usize];
                                 let o = pt.origin_towards(target);
-                                let c = Vec3::new(lc.clamped[0][j], lc.clamped[1][j], lc.clamped[2][j]);
-                                let full = Vec3::new(lc.full[0][j], lc.full[1][j], lc.full[2][j]);
+                                let (c, full) = lc.lane(j);
                                 let add = |(x, c, full)| acc.add_light(x, c, full);
                                 batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                             }
@@ -735,8 +742,7 @@ mod tests {
                         let scalar = lambert.unshadowed(&vpls, i, pt.p, g_max).filter(|_| !near);
                         assert_eq!(lc.lanes >> j & 1 != 0, scalar.is_some(), "lane {j}, VPL {i}");
                         if let Some((c, full)) = scalar {
-                            let lane = |a: &[[f32; 8]; 3]| Vec3::new(a[0][j], a[1][j], a[2][j]);
-                            assert_eq!((lane(&lc.clamped), lane(&lc.full)), (c, full), "lane {j}, VPL {i}");
+                            assert_eq!(lc.lane(j), (c, full), "lane {j}, VPL {i}");
                         }
                     }
                 }
@@ -783,8 +789,7 @@ mod tests {
                         let general = unshadowed(&vpls, i, r, g_max).filter(|_| !near);
                         assert_eq!(lc.lanes >> j & 1 != 0, general.is_some(), "lane {j}, VPL {i}");
                         if let Some((c, full)) = general {
-                            let lane = |a: &[[f32; 8]; 3]| Vec3::new(a[0][j], a[1][j], a[2][j]);
-                            assert_eq!((lane(&lc.clamped), lane(&lc.full)), (c, full), "lane {j}, VPL {i}");
+                            assert_eq!(lc.lane(j), (c, full), "lane {j}, VPL {i}");
                             pairs += 1;
                             smooth_pairs += (ch.smooth_lanes >> j & 1) as usize;
                         } else if ch.smooth_lanes >> j & 1 != 0 && !near {
