@@ -9,7 +9,7 @@ use super::Tracing;
 use crate::accel::rays::block_size;
 use crate::accel::{Accel, Hit};
 use crate::sampling::{IndependentSampler, Sampler};
-use crate::scene::{Camera, Ray, Scene};
+use crate::scene::{Camera, Scene};
 use crate::simd::{F8, LaneRay, RayPacket};
 use crate::stats::RayStats;
 use crate::vpl::transfer::{Receiver, receiver_from_hit};
@@ -78,13 +78,14 @@ impl PrimaryRays<'_> {
         let w = camera.width;
         let (bw, bh) = self.block();
         let y_end = (y0 + bh).min(camera.height);
-        // The camera ray of a pixel and the sampler that continues its specular bounces.
+        // The raster position and lens sample of a pixel's camera ray, and the sampler that
+        // continues its specular bounces.
         let setup = |x: u32, y: u32| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
             let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
             let lens = s.next_2d();
-            (s, camera.generate_ray(vec2(x as f32, y as f32) + off, lens))
+            (s, vec2(x as f32, y as f32) + off, lens)
         };
         let mut st = RayStats::default();
         let mut primary = 0;
@@ -92,7 +93,7 @@ impl PrimaryRays<'_> {
         // site of `receiver_from_hit`: passed through closures, these values went through
         // memory and every pixel stalled on reading them back.
         let mut samplers: [Option<IndependentSampler>; 8] = Default::default();
-        let mut rays = [Ray { origin: Vec3::ZERO, dir: Vec3::Z }; 8];
+        let (mut raster, mut lens) = ([Vec2::ZERO; 8], [Vec2::ZERO; 8]);
         let mut pixels = [(0u32, 0u32); 8];
         let mut hits: [Option<Hit>; 8] = [None; 8];
         for x0 in (0..w).step_by(bw as usize) {
@@ -100,11 +101,12 @@ impl PrimaryRays<'_> {
             for i in 0..(bw * bh) {
                 let (x, y) = (x0 + i % bw, y0 + i / bw);
                 if x < w && y < y_end {
-                    let (s, ray) = setup(x, y);
-                    (samplers[n], rays[n], pixels[n]) = (Some(s), ray, (x, y));
+                    let (s, r, l) = setup(x, y);
+                    (samplers[n], raster[n], lens[n], pixels[n]) = (Some(s), r, l, (x, y));
                     n += 1;
                 }
             }
+            let rays = camera.generate_rays8(&raster, &lens, n);
             primary += n as u64;
             if tracing == Tracing::Single {
                 for (hit, ray) in hits.iter_mut().zip(&rays).take(n) {
