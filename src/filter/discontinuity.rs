@@ -151,10 +151,15 @@ pub fn filter_planes(
                 let base = yy * PLANES * pw;
                 let takers: u32 =
                     acc.iter().enumerate().fold(0, |m, (k, a)| m | ((a.rows.0 <= yy && yy <= a.rows.1) as u32) << k);
-                // Lane l reads pixel xc + l + dx; pixels outside the image are pads.
-                for xs in (pad + xc - x_lo..).take(x_lo + x_hi + 1) {
-                    let n = [at(base, 0, xs), at(base, 1, xs), at(base, 2, xs)];
-                    let (d, v) = (at(base, 3, xs), [at(base, 4, xs), at(base, 5, xs), at(base, 6, xs)]);
+                // The window's span of each plane of row yy (pixels outside the image are pads):
+                // lane l of offset dx reads pixel xc + l + dx − x_lo. Sliced once here, the
+                // loads below need no bounds checks.
+                let span = x_lo + x_hi + L::LANES;
+                let plane: [&[f32]; PLANES] = std::array::from_fn(|k| &planes[base + k * pw + c - x_lo..][..span]);
+                for dx in 0..=x_lo + x_hi {
+                    let at = |k: usize| L::load(&plane[k][dx..]);
+                    let n = [at(0), at(1), at(2)];
+                    let (d, v) = (at(3), [at(4), at(5), at(6)]);
                     for (k, a) in acc.iter_mut().enumerate() {
                         if takers >> k & 1 != 0 {
                             a.add(&n, d, &v, cos, one);
