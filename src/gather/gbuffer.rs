@@ -12,7 +12,7 @@ use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::simd::{F8, LaneRay, RayPacket};
 use crate::stats::RayStats;
-use crate::vpl::transfer::{Receiver, receiver_from_hit};
+use crate::vpl::transfer::{Receiver, receiver_with};
 
 /// Stream tag of G-buffer jitter.
 const TAG_GBUFFER: u64 = 0x4742_5546;
@@ -125,15 +125,16 @@ impl PrimaryRays<'_> {
                 // (Moving the sampler out, rather than borrowing it in place, measured 0.5 ms
                 // faster over a 512² G-buffer.)
                 let Some(mut s) = samplers[k].take() else { continue };
-                let (r, e) =
-                    receiver_from_hit(scene, accel, rays[k], hits[k], &mut || s.next_1d(), max_specular, &mut st);
                 let (x, y) = pixels[k];
                 let i = ((y - y0) * w + x) as usize;
-                out.albedo[i] = r.map(|r| r.bsdf.albedo() * r.beta).unwrap_or(Vec3::ZERO);
-                out.normal[i] = r.map(|r| r.bsdf.frame.n).unwrap_or(Vec3::ZERO);
-                out.depth[i] = r.map(|r| (r.sp.p - camera.position).length()).unwrap_or(0.0);
-                out.receivers[i] = r;
-                out.emitted[i] = e;
+                let u = &mut || s.next_1d();
+                receiver_with(scene, accel, rays[k], hits[k], u, max_specular, &mut st, |r, e| {
+                    out.albedo[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.albedo() * r.beta);
+                    out.normal[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.frame.n);
+                    out.depth[i] = r.map_or(0.0, |r| (r.sp.p - camera.position).length());
+                    out.receivers[i] = r.copied();
+                    out.emitted[i] = e;
+                });
             }
         }
         st.closest += primary;

@@ -132,12 +132,31 @@ pub fn primary_receiver(
 pub fn receiver_from_hit(
     scene: &Scene,
     accel: &Accel,
-    mut ray: crate::scene::Ray,
+    ray: crate::scene::Ray,
     first: Option<crate::accel::Hit>,
     u_specular: &mut impl FnMut() -> f32,
     max_specular: u32,
     stats: &mut RayStats,
 ) -> (Option<Receiver>, Vec3) {
+    receiver_with(scene, accel, ray, first, u_specular, max_specular, stats, |r, e| (r.copied(), e))
+}
+
+/// [`receiver_from_hit`] handing the receiver and the emission seen on the way to `sink` where
+/// they are found. (Returned by value, the receiver was copied out of the bounce loop's exits
+/// into a temporary right after its fields were stored, and every copy stalled on those stores:
+/// a quarter of the G-buffer's time.)
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn receiver_with<T>(
+    scene: &Scene,
+    accel: &Accel,
+    mut ray: crate::scene::Ray,
+    first: Option<crate::accel::Hit>,
+    u_specular: &mut impl FnMut() -> f32,
+    max_specular: u32,
+    stats: &mut RayStats,
+    sink: impl FnOnce(Option<&Receiver>, Vec3) -> T,
+) -> T {
     let mut beta = Vec3::ONE;
     let mut emitted = Vec3::ZERO;
     let mut next = first;
@@ -146,13 +165,13 @@ pub fn receiver_from_hit(
             stats.closest += 1;
             next = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
         }
-        let Some(hit) = next else { return (None, emitted) };
+        let Some(hit) = next else { break };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
         let wo = -ray.dir;
         emitted += beta * scene.emitted(hit.tri, sp.ng, sp.uv, wo);
         let bsdf = Bsdf::new(scene.material_of(hit.tri).bsdf_kind(sp.uv, &scene.textures), sp.ns, sp.ng, wo);
         if !bsdf.is_delta() {
-            return (Some(Receiver { sp, bsdf, wo, beta }), emitted);
+            return sink(Some(&Receiver { sp, bsdf, wo, beta }), emitted);
         }
         if bounce == max_specular {
             break;
@@ -164,5 +183,5 @@ pub fn receiver_from_hit(
         beta *= bs.f * (bsdf.abs_cos(bs.wi) / bs.pdf_w);
         ray = crate::scene::Ray { origin: offset_origin(&sp, &scene.mesh.corners(hit.tri), bs.wi), dir: bs.wi };
     }
-    (None, emitted)
+    sink(None, emitted)
 }
