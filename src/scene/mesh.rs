@@ -63,7 +63,7 @@ impl Mesh {
 
     /// The surface point at barycentrics (b1, b2) of triangle `tri`
     /// (`p = (1 − b1 − b2) p0 + b1 p1 + b2 p2`).
-    #[inline]
+    #[inline(always)]
     pub fn surface_point(&self, tri: u32, b1: f32, b2: f32) -> SurfacePoint {
         let [i0, i1, i2] = self.triangles[tri as usize];
         let (i0, i1, i2) = (i0 as usize, i1 as usize, i2 as usize);
