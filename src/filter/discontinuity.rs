@@ -124,7 +124,8 @@ pub fn filter_planes(
     let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
     let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
     let (pw, pad) = (layout.pw, layout.pad);
-    let mut out = vec![Vec3::ZERO; w * h];
+    // Every pixel is written below; zeroed in parallel, not serially on the calling thread.
+    let mut out: Vec<Vec3> = (0..w * h).into_par_iter().map(|_| Vec3::ZERO).collect();
     let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
     // Two centre rows at a time: their windows share all rows but one, so each neighbour
     // vector is loaded once for both.
