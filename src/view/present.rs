@@ -79,10 +79,10 @@ pub fn tonemap(image: &[Vec3], curve: ToneCurve, out: &mut [u32]) {
 }
 
 /// Encodes each pixel of `image`, sanitised (non-finite → black, negative channels → 0) and
-/// multiplied by `gain` of its luminance, into `out`: eight pixels at a time, with the
-/// operations and rounding of [`encode`] and [`luminance`] in the same order, so the same words
-/// as the scalar form (a third of its time: per pixel it was a division, three saturating
-/// conversions and branches).
+/// multiplied by `gain` of its luminance, into `out` through the sRGB table: eight pixels at a
+/// time, with the per-pixel form's operations in the same order ([`luminance`], then
+/// `(v · (LUT_SIZE − 1) + 0.5)` truncated and clamped), so the same words (tested). A third of the
+/// per-pixel form's time: per pixel it was a division, three saturating conversions and branches.
 fn encode_scaled(image: &[Vec3], out: &mut [u32], gain: impl Fn(F8) -> F8 + Sync) {
     let lut = srgb_lut();
     let (zero, half, top) = (F8::splat(0.0), F8::splat(0.5), F8::splat((LUT_SIZE - 1) as f32));
