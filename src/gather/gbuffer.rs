@@ -6,6 +6,7 @@ use glam::{Vec2, Vec3, vec2};
 use rayon::prelude::*;
 
 use super::Tracing;
+use super::shade::Prepared;
 use crate::accel::rays::block_size;
 use crate::accel::{Accel, Hit};
 use crate::sampling::{IndependentSampler, Sampler};
@@ -51,10 +52,22 @@ pub(crate) struct PrimaryRays<'a> {
     pub tracing: Tracing,
 }
 
+/// A band's receivers prepared for the gather in the G-buffer's own loop, where the receiver
+/// is at hand (preparing them in the gather read each one back through memory, and copying the
+/// whole receiver into the band's buffer stalled on store forwarding). A receiver is then
+/// written to [`BandSlices::receivers`] only when `keep_receiver` says the gather needs more
+/// than its prepared form ([`super::shade::Gatherer::keeps_receiver`]).
+pub(crate) struct PreparedBand<'b> {
+    pub slots: &'b mut [Option<Prepared>],
+    pub keep_receiver: fn(&Prepared) -> bool,
+}
+
 /// The G-buffer rows of one band, as slices of the frame's arrays (receivers may be a band-local
 /// buffer).
 pub(crate) struct BandSlices<'b> {
     pub receivers: &'b mut [Option<Receiver>],
+    /// The receivers prepared for the gather, when the band is gathered at once.
+    pub prepared: Option<PreparedBand<'b>>,
     pub emitted: &'b mut [Vec3],
     pub albedo: &'b mut [Vec3],
     pub normal: &'b mut [Vec3],
@@ -73,7 +86,7 @@ impl PrimaryRays<'_> {
     }
 
     /// Traces the rows `y0..` of one band (`band_rows` rows, or fewer at the bottom) into `out`.
-    pub(crate) fn band(&self, y0: u32, out: BandSlices<'_>) -> RayStats {
+    pub(crate) fn band(&self, y0: u32, mut out: BandSlices<'_>) -> RayStats {
         let Self { scene, accel, camera, seed, jitter, max_specular, tracing } = *self;
         let w = camera.width;
         let (bw, bh) = self.block();
@@ -132,7 +145,16 @@ impl PrimaryRays<'_> {
                     out.albedo[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.albedo() * r.beta);
                     out.normal[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.frame.n);
                     out.depth[i] = r.map_or(0.0, |r| (r.sp.p - camera.position).length());
-                    out.receivers[i] = r.copied();
+                    match &mut out.prepared {
+                        Some(PreparedBand { slots, keep_receiver }) => {
+                            let pt = r.map(|r| Prepared::new(scene, r));
+                            if pt.as_ref().is_some_and(*keep_receiver) {
+                                out.receivers[i] = r.copied();
+                            }
+                            slots[i] = pt;
+                        }
+                        None => out.receivers[i] = r.copied(),
+                    }
                     out.emitted[i] = e;
                 });
             }
@@ -200,7 +222,10 @@ pub fn trace(
         .zip(g.depth.par_chunks_mut(band_len))
         .enumerate()
         .map(|(band, ((((receivers, emitted), albedo), normal), depth))| {
-            rays.band(band as u32 * rays.band_rows(), BandSlices { receivers, emitted, albedo, normal, depth })
+            rays.band(
+                band as u32 * rays.band_rows(),
+                BandSlices { receivers, prepared: None, emitted, albedo, normal, depth },
+            )
         })
         .collect();
     for st in band_stats {

@@ -20,7 +20,7 @@ use crate::filter::PlaneLayout;
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 use crate::vpl::VplSet;
-use gbuffer::{BandSlices, PrimaryRays};
+use gbuffer::{BandSlices, PreparedBand, PrimaryRays};
 use shade::Gatherer;
 
 /// What [`trace_and_gather`] needs besides the scene and the VPLs.
@@ -105,27 +105,40 @@ pub fn trace_and_gather(
         .zip(g.depth.par_chunks_mut(band_len.max(1)))
         .zip(plane_bands.par_iter_mut())
         .enumerate()
-        .map_init(Vec::new, |receivers, (band, (((((light, emitted), albedo), normal), depth), plane_band))| {
-            let t = Instant::now();
-            receivers.resize(light.len(), None);
-            let y0 = band as u32 * rays.band_rows();
-            let mut st = rays.band(y0, BandSlices { receivers, emitted, albedo, normal, depth });
-            let t_primary = t.elapsed();
-            let mut energy = GatherEnergy::default();
-            let row = w as usize;
-            for (k, (receivers, light)) in receivers.chunks(row).zip(light.chunks_mut(row)).enumerate() {
-                let (s, e) = gatherer.row(y0 + k as u32, receivers, light);
-                st += s;
-                energy += e;
-            }
-            if let (Some(l), Some(p)) = (layout, plane_band) {
-                for (k, plane_row) in p.chunks_mut(l.row_len()).enumerate() {
-                    let r = k * row..(k + 1) * row;
-                    l.fill_row(plane_row, &light[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+        .map_init(
+            <(Vec<_>, Vec<_>)>::default,
+            |(receivers, prepared), (band, (((((light, emitted), albedo), normal), depth), plane_band))| {
+                let t = Instant::now();
+                receivers.resize(light.len(), None);
+                prepared.resize(light.len(), None);
+                let y0 = band as u32 * rays.band_rows();
+                let slices = BandSlices {
+                    receivers,
+                    prepared: Some(PreparedBand { slots: prepared, keep_receiver: gatherer.keeps_receiver() }),
+                    emitted,
+                    albedo,
+                    normal,
+                    depth,
+                };
+                let mut st = rays.band(y0, slices);
+                let t_primary = t.elapsed();
+                let mut energy = GatherEnergy::default();
+                let row = w as usize;
+                let rows = receivers.chunks(row).zip(prepared.chunks(row)).zip(light.chunks_mut(row));
+                for (k, ((receivers, prepared), light)) in rows.enumerate() {
+                    let (s, e) = gatherer.row(y0 + k as u32, receivers, Some(prepared), light);
+                    st += s;
+                    energy += e;
                 }
-            }
-            (st, energy, t_primary, t.elapsed() - t_primary)
-        })
+                if let (Some(l), Some(p)) = (layout, plane_band) {
+                    for (k, plane_row) in p.chunks_mut(l.row_len()).enumerate() {
+                        let r = k * row..(k + 1) * row;
+                        l.fill_row(plane_row, &light[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+                    }
+                }
+                (st, energy, t_primary, t.elapsed() - t_primary)
+            },
+        )
         .collect();
     drop(plane_bands);
     let (mut energy, mut primary, mut shadow) = (GatherEnergy::default(), Duration::ZERO, Duration::ZERO);

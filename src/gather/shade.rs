@@ -171,6 +171,7 @@ impl<T: Copy + Default> ShadowBatch<T> {
 /// A G-buffer receiver prepared for the gather's inner loop: the parts of
 /// [`unshadowed`] and [`shadow_segment`] that depend on the receiver alone, computed once per
 /// pixel instead of once per VPL–pixel pair.
+#[derive(Clone)]
 pub(crate) struct Prepared {
     p: Vec3,
     /// Front geometric normal and the origin offset along it ([`crate::accel::ray_offset`]).
@@ -181,6 +182,7 @@ pub(crate) struct Prepared {
 }
 
 /// The factors of a Lambertian receiver's `β · f(wo, wi) · |cos θ_i|` that do not depend on wi.
+#[derive(Clone)]
 struct LambertReceiver {
     /// The BSDF's geometric normal (oriented towards wo) and `wo · ng_o`.
     ng_o: Vec3,
@@ -194,7 +196,10 @@ struct LambertReceiver {
 }
 
 impl Prepared {
-    /// Prepares receiver `r` of `scene`.
+    /// Prepares receiver `r` of `scene`. Always inlined: called out of line from the G-buffer's
+    /// loop, its result came back through memory and the copy into the band's slot stalled
+    /// (benches/results/2026-12-01-view.md, fourth session).
+    #[inline(always)]
     pub(crate) fn new(scene: &Scene, r: &Receiver) -> Self {
         let lambert = match r.bsdf.kind {
             BsdfKind::Lambert { albedo } => Some(LambertReceiver {
@@ -528,10 +533,26 @@ impl<'a> Gatherer<'a> {
         Some((x, c, full, o, target - o))
     }
 
+    /// Which prepared receivers [`Gatherer::row`] also needs the receiver of.
+    pub(crate) fn keeps_receiver(&self) -> fn(&Prepared) -> bool {
+        match (self.tracing, &self.chunks) {
+            (Tracing::Single | Tracing::PrimaryPackets, Some(_)) => |pt| pt.lambert.is_none(),
+            _ => |_| true,
+        }
+    }
+
     /// Gathers row `y` from its receivers into `out` (VPL-transported light, interleave-scaled).
-    pub(crate) fn row(&self, y: u32, receivers: &[Option<Receiver>], out: &mut [Vec3]) -> (RayStats, GatherEnergy) {
+    /// `prepared`, when given, holds the row's receivers already prepared; `receivers` then
+    /// needs only those that [`Gatherer::keeps_receiver`] keeps.
+    pub(crate) fn row(
+        &self,
+        y: u32,
+        receivers: &[Option<Receiver>],
+        prepared: Option<&[Option<Prepared>]>,
+        out: &mut [Vec3],
+    ) -> (RayStats, GatherEnergy) {
         let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
-        let w = receivers.len() as u32;
+        let w = out.len() as u32;
         let mut st = RayStats::default();
         // The packet groupings visit pixels out of order: their receivers are prepared first.
         let row_points: Vec<Option<Prepared>> = match self.tracing {
@@ -556,10 +577,23 @@ impl<'a> Gatherer<'a> {
                 // Pixel, clamped and unclamped contribution of each queued ray.
                 let mut batch = ShadowBatch::<(u32, Vec3, Vec3)>::new();
                 for x in 0..w {
-                    // Prepared here, pixel by pixel: collected into a row first, each one was
-                    // copied through memory (measured in benches/results/2026-12-01-view.md).
-                    let Some(r) = &receivers[x as usize] else { continue };
-                    let pt = Prepared::new(scene, r);
+                    // Prepared here, pixel by pixel, unless the G-buffer did it: collected into
+                    // a row first, each one was copied through memory (measured in
+                    // benches/results/2026-12-01-view.md).
+                    let local;
+                    let pt = match prepared {
+                        Some(p) => match &p[x as usize] {
+                            Some(pt) => pt,
+                            None => continue,
+                        },
+                        None => match &receivers[x as usize] {
+                            Some(r) => {
+                                local = Prepared::new(scene, r);
+                                &local
+                            }
+                            None => continue,
+                        },
+                    };
                     // Lambertian receiver, diffuse or Lambertian-lobe VPLs: eight VPLs at a time.
                     if let Some(chunks) = &self.chunks
                         && let Some(l) = &pt.lambert
@@ -589,8 +623,9 @@ impl<'a> Gatherer<'a> {
                         continue;
                     }
                     // Any other receiver or VPL: the general kernels, the same batched rays.
+                    let r = receivers[x as usize].as_ref().expect("a receiver kept for the general kernels");
                     for &i in &inter.subsets[inter.subset_of(x, y)] {
-                        if let Some((x, c, full, o, _)) = self.candidate(&pt, r, x, i as usize) {
+                        if let Some((x, c, full, o, _)) = self.candidate(pt, r, x, i as usize) {
                             let add = |(x, c, full)| acc.add_light(x, c, full);
                             let target = vpls.position[i as usize];
                             batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
@@ -663,7 +698,7 @@ pub fn gather(
         .par_chunks_mut(w.max(1))
         .zip(gbuf.receivers.par_chunks(w.max(1)))
         .enumerate()
-        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, out))
+        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, None, out))
         .collect();
     let mut energy = GatherEnergy::default();
     for (st, e) in rows {
