@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, PlaneLayout, filter_planes};
-use crate::gather::{self, GBuffer, GatherEnergy, Gathered, Interleave, OnePass, Tracing};
+use crate::gather::{self, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -111,6 +111,16 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
     }
 }
 
+/// A frame's per-pixel buffers that the next frame of the same size can reuse instead of
+/// allocating and clearing them (see [`gather_frame_reusing`]).
+#[derive(Debug, Default)]
+pub struct Spare {
+    /// The G-buffer, the light and the filter's planes ([`gather::Lent`]).
+    pub lent: Lent,
+    /// The filter's output ([`filter_planes`]).
+    pub filtered: Vec<Vec3>,
+}
+
 /// A rendered frame.
 #[derive(Debug)]
 pub struct Frame {
@@ -118,10 +128,21 @@ pub struct Frame {
     pub image: Vec<Vec3>,
     /// The frame's G-buffer.
     pub gbuffer: GBuffer,
+    /// The frame's other per-pixel buffers, for the next frame to reuse: pass
+    /// [`Frame::into_spare`] to [`gather_frame_reusing`].
+    pub scratch: Spare,
     /// The VPLs used.
     pub vpls: VplSet,
     /// Stage times and counts.
     pub stats: FrameStats,
+}
+
+impl Frame {
+    /// The frame's buffers for the next frame to reuse (the G-buffer with them).
+    pub fn into_spare(self) -> Spare {
+        let Spare { lent, filtered } = self.scratch;
+        Spare { lent: Lent { gbuffer: self.gbuffer, ..lent }, filtered }
+    }
 }
 
 /// Renders one frame with VPLs from `sampler`; `seed` selects the VPL set and the jitter.
@@ -133,10 +154,10 @@ pub fn render_frame(
     settings: &FrameSettings,
     seed: u64,
 ) -> Frame {
-    render_frame_reusing(scene, accel, camera, sampler, settings, seed, GBuffer::default())
+    render_frame_reusing(scene, accel, camera, sampler, settings, seed, Spare::default())
 }
 
-/// [`render_frame`] with the G-buffer written into the allocation of `spare` (see
+/// [`render_frame`] with the frame's buffers in the allocations of `spare` (see
 /// [`gather_frame_reusing`]).
 pub fn render_frame_reusing(
     scene: &Scene,
@@ -145,7 +166,7 @@ pub fn render_frame_reusing(
     sampler: &mut dyn VplSampler,
     settings: &FrameSettings,
     seed: u64,
-    spare: GBuffer,
+    spare: Spare,
 ) -> Frame {
     let mut stats = FrameStats::default();
     let t = Instant::now();
@@ -165,11 +186,13 @@ pub fn gather_frame(
     seed: u64,
     stats: FrameStats,
 ) -> Frame {
-    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, GBuffer::default())
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, Spare::default())
 }
 
-/// [`gather_frame`] writing the G-buffer into the allocation of `spare` (the previous frame's
-/// [`Frame::gbuffer`]) when its size matches: what a frame loop uses.
+/// [`gather_frame`] writing the G-buffer, the gathered light, the filter's planes and its
+/// output into the allocations of `spare` (the previous frame's, [`Frame::into_spare`]) where
+/// their sizes match: what a frame loop uses. They are not cleared (each is written before it
+/// is read); allocating and zeroing them afresh cost ~1 ms a frame at 512².
 pub fn gather_frame_reusing(
     scene: &Scene,
     accel: &Accel,
@@ -178,7 +201,7 @@ pub fn gather_frame_reusing(
     settings: &FrameSettings,
     seed: u64,
     mut stats: FrameStats,
-    spare: GBuffer,
+    spare: Spare,
 ) -> Frame {
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
@@ -200,21 +223,24 @@ pub fn gather_frame_reusing(
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
     };
     let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes } =
-        gather::trace_and_gather(scene, accel, &vpls, &pass, spare, &mut stats.rays);
+        gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
     stats.energy = energy;
     stats.primary_time = primary_time;
     stats.shadow_time = shadow_time;
     let t = Instant::now();
     // (The planes were filled during the pass: their time counts there.)
-    let filtered = match (filter, pass.planes, planes) {
+    let reuse = spare.filtered;
+    let (filtered, scratch) = match (filter, pass.planes, planes) {
         (Some(s), Some(layout), Some(planes)) => {
-            filter_planes(&layout, &planes, gbuf.height, &gathered, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &s)
+            let (albedo, normal, depth) = (&gbuf.albedo, &gbuf.normal, &gbuf.depth);
+            let f = filter_planes(&layout, &planes, gbuf.height, &gathered, albedo, normal, depth, &s, reuse);
+            (f, Lent { gbuffer: GBuffer::default(), light: gathered, planes })
         }
-        _ => gathered,
+        (_, _, planes) => (gathered, Lent { planes: planes.unwrap_or_default(), ..Default::default() }),
     };
     stats.filter_time = t.elapsed();
     let image = filtered.par_iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
-    Frame { image, gbuffer: gbuf, vpls, stats }
+    Frame { image, gbuffer: gbuf, vpls, stats, scratch: Spare { lent: scratch, filtered } }
 }
 
 /// How long and with which streams frames accumulate.
@@ -248,7 +274,7 @@ pub fn render_progressive(
         Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
     }
     let mut frames = 0u32;
-    let mut spare = GBuffer::default();
+    let mut spare = Spare::default();
     loop {
         let frame_seed = seed.wrapping_mul(0x9e37_79b9).wrapping_add(frames as u64);
         let frame = render_frame_reusing(scene, accel, cam, sampler, settings, frame_seed, spare);
@@ -265,7 +291,7 @@ pub fn render_progressive(
         }
         film.merge_tile(&tile);
         total += &frame.stats;
-        spare = frame.gbuffer;
+        spare = frame.into_spare();
         total.rays.samples += (cam.width * cam.height) as u64;
         frames += 1;
         let done = match budget {

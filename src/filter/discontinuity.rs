@@ -61,8 +61,11 @@ impl PlaneLayout {
         PLANES * self.pw
     }
 
-    /// Fills `row` (one image row's planes, [`PlaneLayout::row_len`] floats, pads zero or as
-    /// left by an earlier fill) from that row's pixels.
+    /// Fills `row` (one image row's planes, [`PlaneLayout::row_len`] floats, holding anything:
+    /// zeros, an earlier frame's planes, or planes of another layout) from that row's pixels.
+    /// The depth plane is rewritten whole, NaN where there is no pixel (pads included), and the
+    /// filter takes a neighbour only where its depth passes, so what the other planes hold there
+    /// never reaches a sum (tested with planes full of garbage).
     #[inline]
     pub fn fill_row(&self, row: &mut [f32], gathered: &[Vec3], albedo: &[Vec3], normal: &[Vec3], depth: &[f32]) {
         let (pw, pad) = (self.pw, self.pad);
@@ -97,11 +100,12 @@ pub fn filter(
         let r = y * w..(y + 1) * w;
         layout.fill_row(row, &gathered[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
     });
-    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s)
+    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s, Vec::new())
 }
 
 /// [`filter`] from planes already filled ([`PlaneLayout::fill_row`] for every row; the frame
-/// pipeline fills them while each band of rows is in cache).
+/// pipeline fills them while each band of rows is in cache), into the allocation of `reuse` when
+/// it has the image's size (every pixel is written, so it needs no clearing).
 ///
 /// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
 /// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
@@ -116,6 +120,7 @@ pub fn filter_planes(
     normal: &[Vec3],
     depth: &[f32],
     s: &DiscontinuitySettings,
+    reuse: Vec<Vec3>,
 ) -> Vec<Vec3> {
     assert_eq!(planes.len(), layout.row_len() * height as usize, "filter planes of another size");
     assert_eq!(*layout, PlaneLayout::new(layout.width as u32, s), "filter planes laid out for other windows");
@@ -125,7 +130,7 @@ pub fn filter_planes(
     let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
     let (pw, pad) = (layout.pw, layout.pad);
     // Every pixel is written below; zeroed in parallel, not serially on the calling thread.
-    let mut out: Vec<Vec3> = (0..w * h).into_par_iter().map(|_| Vec3::ZERO).collect();
+    let mut out = if reuse.len() == w * h { reuse } else { (0..w * h).into_par_iter().map(|_| Vec3::ZERO).collect() };
     let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
     // Two centre rows at a time: their windows share all rows but one, so each neighbour
     // vector is loaded once for both.

@@ -46,6 +46,19 @@ pub struct OnePass<'a> {
     pub planes: Option<PlaneLayout>,
 }
 
+/// Allocations lent to [`trace_and_gather`] by an earlier pass (a frame loop's previous frame),
+/// each used when its size matches and replaced by a fresh one otherwise. They need no
+/// clearing: the pass writes every entry it reads (tested with garbage in them).
+#[derive(Debug, Default)]
+pub struct Lent {
+    /// The G-buffer ([`GBuffer::reusing`]).
+    pub gbuffer: GBuffer,
+    /// The light ([`Gathered::light`]).
+    pub light: Vec<Vec3>,
+    /// The filter's planes ([`Gathered::planes`]).
+    pub planes: Vec<f32>,
+}
+
 /// The result of [`trace_and_gather`].
 #[derive(Debug)]
 pub struct Gathered {
@@ -68,14 +81,13 @@ pub struct Gathered {
 /// [`gbuffer::trace`] and [`gather`] in one pass: each band of rows is traced and then gathered
 /// at once, while its receivers are in cache, instead of writing the whole frame's receivers
 /// (~150 bytes a pixel, 40 MB at 512²) to memory and reading them back. The same image and
-/// the same G-buffer arrays, bit for bit (tested). `reuse` lends its allocation as in
-/// [`gbuffer::trace`].
+/// the same G-buffer arrays, bit for bit (tested). `lent` lends its allocations (see [`Lent`]).
 pub fn trace_and_gather(
     scene: &Scene,
     accel: &Accel,
     vpls: &VplSet,
     pass: &OnePass<'_>,
-    reuse: GBuffer,
+    lent: Lent,
     stats: &mut RayStats,
 ) -> Gathered {
     let start = Instant::now();
@@ -84,12 +96,17 @@ pub fn trace_and_gather(
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
     let (w, h) = (camera.width, camera.height);
-    let mut g = GBuffer::reusing(reuse, w, h, false);
+    let Lent { gbuffer, light, planes } = lent;
+    let mut g = GBuffer::reusing(gbuffer, w, h, false);
     let band_len = (rays.band_rows() * w) as usize;
-    let mut light: Vec<Vec3> = (0..(w * h) as usize).into_par_iter().map(|_| Vec3::ZERO).collect();
-    // (Zeroed in parallel: a serial zeroing of these 7.6 MB at 512² held up both cores.)
-    let mut planes: Option<Vec<f32>> =
-        layout.map(|l| (0..l.row_len() * h as usize).into_par_iter().map(|_| 0.0).collect());
+    // Fresh buffers are zeroed in parallel: a serial zeroing of the planes' 7.6 MB at 512² held
+    // up both cores. Lent ones are not cleared at all (zeroing both each frame cost ~1 ms).
+    let n = (w * h) as usize;
+    let mut light = if light.len() == n { light } else { fresh(n, Vec3::ZERO) };
+    let mut planes: Option<Vec<f32>> = layout.map(|l| {
+        let len = l.row_len() * h as usize;
+        if planes.len() == len { planes } else { fresh(len, 0.0) }
+    });
     let n_bands = (h as usize).div_ceil(rays.band_rows() as usize);
     let mut plane_bands: Vec<Option<&mut [f32]>> = match (&mut planes, layout) {
         (Some(p), Some(l)) => p.chunks_mut(l.row_len() * rays.band_rows() as usize).map(Some).collect(),
@@ -152,6 +169,11 @@ pub fn trace_and_gather(
     let share = primary.as_secs_f64() / (primary + shadow).as_secs_f64().max(1e-12);
     let primary_time = wall.mul_f64(share);
     Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes }
+}
+
+/// `n` copies of `v`, written in parallel.
+fn fresh<T: Copy + Send + Sync>(n: usize, v: T) -> Vec<T> {
+    (0..n).into_par_iter().map(|_| v).collect()
 }
 
 /// How the G-buffer and the gather trace their rays (all give the same image: packet lanes equal
@@ -252,11 +274,28 @@ mod tests {
                     min_distance,
                     planes: Some(layout),
                 };
-                // Twice: fresh arrays, then the first pass's arrays reused.
-                let mut spare = GBuffer::default();
-                for _ in 0..2 {
+                // Three times: fresh arrays, the first pass's arrays reused, and reused arrays
+                // filled with garbage (NaN, infinities, huge and negative values): nothing a pass
+                // reads may come from what its lent buffers held.
+                let mut spare = (Lent::default(), Vec::new());
+                for pass_no in 0..3 {
+                    if pass_no == 2 {
+                        let junk = |k: usize| [f32::NAN, f32::INFINITY, -3.0e38, -1.0, 7.5][k % 5];
+                        let (lent, filtered) = &mut spare;
+                        let g = &mut lent.gbuffer;
+                        for (k, v) in lent.light.iter_mut().chain(filtered.iter_mut()).enumerate() {
+                            *v = Vec3::splat(junk(k));
+                        }
+                        for (k, v) in g.emitted.iter_mut().chain(&mut g.albedo).chain(&mut g.normal).enumerate() {
+                            *v = Vec3::splat(junk(k + 1));
+                        }
+                        for (k, v) in lent.planes.iter_mut().chain(&mut g.depth).enumerate() {
+                            *v = junk(k + 2);
+                        }
+                    }
                     let mut st = RayStats::default();
-                    let one = trace_and_gather(&scene, &accel, &vpls, &pass, spare, &mut st);
+                    let (lent, reuse_filtered) = spare;
+                    let one = trace_and_gather(&scene, &accel, &vpls, &pass, lent, &mut st);
                     assert!(one.light.iter().any(|l| *l != Vec3::ZERO), "{case}: no light gathered");
                     assert!(one.light == light, "{case}");
                     assert_eq!(one.gbuffer.emitted, gbuf.emitted);
@@ -270,13 +309,22 @@ mod tests {
                     assert_eq!(st, st_a);
                     // The planes filled band by band filter to the standalone filter's image.
                     let (gb, h) = (&one.gbuffer, camera.height);
-                    let planes = one.planes.as_ref().expect("planes asked for");
-                    let banded =
-                        filter_planes(&layout, planes, h, &one.light, &gb.albedo, &gb.normal, &gb.depth, &filter);
+                    let planes = one.planes.expect("planes asked for");
+                    let banded = filter_planes(
+                        &layout,
+                        &planes,
+                        h,
+                        &one.light,
+                        &gb.albedo,
+                        &gb.normal,
+                        &gb.depth,
+                        &filter,
+                        reuse_filtered,
+                    );
                     let whole =
                         discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
-                    assert!(banded == whole, "{case}: filtered images differ");
-                    spare = one.gbuffer;
+                    assert!(banded == whole, "{case} pass {pass_no}: filtered images differ");
+                    spare = (Lent { gbuffer: one.gbuffer, light: one.light, planes }, banded);
                 }
             }
         }

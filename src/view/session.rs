@@ -112,7 +112,7 @@ pub struct Session {
     pending: Motion,
     history: reuse::VplHistory,
     /// The previous frame's G-buffer, whose allocation the next frame reuses.
-    spare_gbuffer: crate::gather::GBuffer,
+    spare: frame::Spare,
     frame_index: u64,
     mean: Vec<Vec3>,
     accumulated: u32,
@@ -131,7 +131,7 @@ impl Session {
             camera,
             pending: Motion::Jump,
             history: reuse::VplHistory::default(),
-            spare_gbuffer: Default::default(),
+            spare: Default::default(),
             frame_index: 0,
             accumulated: 0,
         }
@@ -262,8 +262,8 @@ impl Session {
         // change samples pixel centres, so a moving camera does not shimmer at edges.
         let mut settings = self.settings.frame;
         settings.jitter &= self.accumulated > 0;
-        let spare = std::mem::take(&mut self.spare_gbuffer);
-        let frame =
+        let spare = std::mem::take(&mut self.spare);
+        let mut frame =
             frame::gather_frame_reusing(&self.scene, &self.accel, &self.camera, vpls, &settings, seed, stats, spare);
         self.frame_index += 1;
 
@@ -289,16 +289,9 @@ impl Session {
             })
             .sum();
         let accumulate_time = t.elapsed();
-        self.spare_gbuffer = frame.gbuffer;
-        FrameOutcome {
-            image: frame.image,
-            stats: frame.stats,
-            accumulate_time,
-            motion,
-            vpls_gathered,
-            vpls_reused,
-            non_finite,
-        }
+        let (image, stats) = (std::mem::take(&mut frame.image), std::mem::take(&mut frame.stats));
+        self.spare = frame.into_spare();
+        FrameOutcome { image, stats, accumulate_time, motion, vpls_gathered, vpls_reused, non_finite }
     }
 }
 
