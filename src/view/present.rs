@@ -46,15 +46,41 @@ fn sanitize(p: Vec3) -> Vec3 {
 /// scaled luminance).
 fn reinhard_stats(image: &[Vec3]) -> (f32, f32) {
     let stride = (image.len() / 65_536).max(1);
-    let (sum, n) = image
-        .par_iter()
-        .step_by(stride)
-        .map(|&p| ((1e-6 + luminance(sanitize(p))).ln() as f64, 1usize))
+    // The log-average over every stride-th pixel, eight at a time: the per-pixel libm logarithm
+    // took 0.4 ms of a 512² frame's 1.1 ms tone map.
+    let sampled = image.len().div_ceil(stride);
+    let (sum, n) = (0..sampled.div_ceil(F8::LANES))
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|b| {
+            let first = b * F8::LANES;
+            let lanes = (sampled - first).min(F8::LANES);
+            let px: [Vec3; 8] =
+                std::array::from_fn(|i| if i < lanes { image[(first + i) * stride] } else { Vec3::ZERO });
+            let log = (F8::splat(1e-6) + luminance8(&sanitized8(&px[..lanes]))).ln().to_array();
+            (log[..lanes].iter().map(|&l| l as f64).sum::<f64>(), lanes)
+        })
         .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let log_avg = (sum / n.max(1) as f64).exp() as f32;
     let scale = 0.18 / log_avg.max(1e-12);
     let max_lum = image.par_iter().map(|&p| luminance(sanitize(p))).reduce(|| 0.0, f32::max);
     (scale, (max_lum * scale).max(1e-6))
+}
+
+/// Up to eight pixels as channel lanes, sanitised as [`sanitize`] does (missing pixels black).
+#[inline(always)]
+fn sanitized8(px: &[Vec3]) -> [F8; 3] {
+    let zero = F8::splat(0.0);
+    let channel = |k: usize| F8::from_fn(|i| px.get(i).map_or(0.0, |p| p[k]));
+    let c = [channel(0), channel(1), channel(2)];
+    let finite = c[0].finite().and(c[1].finite()).and(c[2].finite());
+    c.map(|c| finite.select(c.vmax(zero), zero))
+}
+
+/// [`luminance`] on eight lanes, the same operations in the same order.
+#[inline(always)]
+fn luminance8(c: &[F8; 3]) -> F8 {
+    F8::splat(0.2126) * c[0] + F8::splat(0.7152) * c[1] + F8::splat(0.0722) * c[2]
 }
 
 /// Tone-maps `image` into `out` (same length), one 0x00RRGGBB word per pixel.
@@ -85,14 +111,11 @@ pub fn tonemap(image: &[Vec3], curve: ToneCurve, out: &mut [u32]) {
 /// per-pixel form's time: per pixel it was a division, three saturating conversions and branches.
 fn encode_scaled(image: &[Vec3], out: &mut [u32], gain: impl Fn(F8) -> F8 + Sync) {
     let lut = srgb_lut();
-    let (zero, half, top) = (F8::splat(0.0), F8::splat(0.5), F8::splat((LUT_SIZE - 1) as f32));
+    let (half, top) = (F8::splat(0.5), F8::splat((LUT_SIZE - 1) as f32));
     out.par_chunks_mut(4096).zip(image.par_chunks(4096)).for_each(|(out, image)| {
         for (o, px) in out.chunks_mut(F8::LANES).zip(image.chunks(F8::LANES)) {
-            let channel = |k: usize| F8::from_fn(|i| px.get(i).map_or(0.0, |p| p[k]));
-            let c = [channel(0), channel(1), channel(2)];
-            let finite = c[0].finite().and(c[1].finite()).and(c[2].finite());
-            let c = c.map(|c| finite.select(c.vmax(zero), zero));
-            let g = gain(F8::splat(0.2126) * c[0] + F8::splat(0.7152) * c[1] + F8::splat(0.0722) * c[2]);
+            let c = sanitized8(px);
+            let g = gain(luminance8(&c));
             // Table indices: the values are ≥ 0 and not NaN here, so clamping before the
             // truncation equals the scalar truncation followed by the clamp.
             let index = c.map(|c| ((c * g) * top + half).vmin(top).trunc_int().to_array());
