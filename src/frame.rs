@@ -117,8 +117,8 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
 pub struct Spare {
     /// The G-buffer, the light and the filter's planes ([`gather::Lent`]).
     pub lent: Lent,
-    /// The filter's output ([`filter_planes`]).
-    pub filtered: Vec<Vec3>,
+    /// The image ([`Frame::image`], the filter's output), when the frame's user hands it back.
+    pub image: Vec<Vec3>,
 }
 
 /// A rendered frame.
@@ -140,8 +140,7 @@ pub struct Frame {
 impl Frame {
     /// The frame's buffers for the next frame to reuse (the G-buffer with them).
     pub fn into_spare(self) -> Spare {
-        let Spare { lent, filtered } = self.scratch;
-        Spare { lent: Lent { gbuffer: self.gbuffer, ..lent }, filtered }
+        Spare { lent: Lent { gbuffer: self.gbuffer, ..self.scratch.lent }, image: self.image }
     }
 }
 
@@ -229,18 +228,41 @@ pub fn gather_frame_reusing(
     stats.shadow_time = shadow_time;
     let t = Instant::now();
     // (The planes were filled during the pass: their time counts there.)
-    let reuse = spare.filtered;
-    let (filtered, scratch) = match (filter, pass.planes, planes) {
+    // The image: filtered light plus the emission seen directly, written by the filter as it
+    // goes.
+    let (image, planes) = match (filter, pass.planes, planes) {
         (Some(s), Some(layout), Some(planes)) => {
-            let (albedo, normal, depth) = (&gbuf.albedo, &gbuf.normal, &gbuf.depth);
-            let f = filter_planes(&layout, &planes, gbuf.height, &gathered, albedo, normal, depth, &s, reuse);
-            (f, Lent { gbuffer: GBuffer::default(), light: gathered, planes })
+            let (albedo, normal, depth, emitted) = (&gbuf.albedo, &gbuf.normal, &gbuf.depth, &gbuf.emitted);
+            let reuse = spare.image;
+            (
+                filter_planes(
+                    &layout,
+                    &planes,
+                    gbuf.height,
+                    &gathered,
+                    albedo,
+                    normal,
+                    depth,
+                    &s,
+                    Some(emitted),
+                    reuse,
+                ),
+                planes,
+            )
         }
-        (_, _, planes) => (gathered, Lent { planes: planes.unwrap_or_default(), ..Default::default() }),
+        (_, _, planes) => {
+            let mut image = spare.image;
+            if image.len() == gathered.len() {
+                image.par_iter_mut().zip(&gathered).zip(&gbuf.emitted).for_each(|((i, g), e)| *i = *g + *e);
+            } else {
+                image = gathered.par_iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
+            }
+            (image, planes.unwrap_or_default())
+        }
     };
     stats.filter_time = t.elapsed();
-    let image = filtered.par_iter().zip(&gbuf.emitted).map(|(g, e)| *g + *e).collect();
-    Frame { image, gbuffer: gbuf, vpls, stats, scratch: Spare { lent: scratch, filtered } }
+    let scratch = Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes }, image: Vec::new() };
+    Frame { image, gbuffer: gbuf, vpls, stats, scratch }
 }
 
 /// How long and with which streams frames accumulate.

@@ -100,12 +100,14 @@ pub fn filter(
         let r = y * w..(y + 1) * w;
         layout.fill_row(row, &gathered[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
     });
-    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s, Vec::new())
+    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s, None, Vec::new())
 }
 
 /// [`filter`] from planes already filled ([`PlaneLayout::fill_row`] for every row; the frame
-/// pipeline fills them while each band of rows is in cache), into the allocation of `reuse` when
-/// it has the image's size (every pixel is written, so it needs no clearing).
+/// pipeline fills them while each band of rows is in cache), plus `plus` per pixel when given
+/// (the frame adds the emission seen directly as it writes each pixel, instead of in another
+/// pass over 9 MB at 512²), into the allocation of `reuse` when it has the image's size (every
+/// pixel is written, so it needs no clearing).
 ///
 /// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
 /// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
@@ -120,6 +122,7 @@ pub fn filter_planes(
     normal: &[Vec3],
     depth: &[f32],
     s: &DiscontinuitySettings,
+    plus: Option<&[Vec3]>,
     reuse: Vec<Vec3>,
 ) -> Vec<Vec3> {
     assert_eq!(planes.len(), layout.row_len() * height as usize, "filter planes of another size");
@@ -180,10 +183,14 @@ pub fn filter_planes(
                 for lane in 0..L::LANES.min(w - xc) {
                     let (x, i) = (xc + lane, y * w + xc + lane);
                     let (al, n0, d) = (albedo[i], normal[i], depth[i]);
-                    row[x] = if al.min_element() <= 0.0 || n0 == Vec3::ZERO || d <= 0.0 || count[lane] == 0.0 {
+                    let v = if al.min_element() <= 0.0 || n0 == Vec3::ZERO || d <= 0.0 || count[lane] == 0.0 {
                         gathered[i]
                     } else {
                         Vec3::new(sx[lane], sy[lane], sz[lane]) / count[lane] * al
+                    };
+                    row[x] = match plus {
+                        Some(plus) => v + plus[i],
+                        None => v,
                     };
                 }
             }

@@ -319,11 +319,28 @@ mod tests {
                         &gb.normal,
                         &gb.depth,
                         &filter,
+                        None,
                         reuse_filtered,
                     );
                     let whole =
                         discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
                     assert!(banded == whole, "{case} pass {pass_no}: filtered images differ");
+                    // The emission added as the filter writes each pixel is the same sum as added after.
+                    let (albedo, normal, depth) = (&gb.albedo, &gb.normal, &gb.depth);
+                    let plus = filter_planes(
+                        &layout,
+                        &planes,
+                        h,
+                        &one.light,
+                        albedo,
+                        normal,
+                        depth,
+                        &filter,
+                        Some(&gb.emitted),
+                        Vec::new(),
+                    );
+                    let after: Vec<Vec3> = banded.iter().zip(&gb.emitted).map(|(f, e)| *f + *e).collect();
+                    assert!(plus == after, "{case}: emission added in the filter differs");
                     spare = (Lent { gbuffer: one.gbuffer, light: one.light, planes }, banded);
                 }
             }

@@ -237,6 +237,7 @@ impl FrameLoop {
         t.vpls_reused += outcome.vpls_reused as u64;
 
         let flicker = self.flicker.as_mut().and_then(|m| m.push(&outcome.image));
+        self.session.recycle(outcome.image);
         let accumulated = self.session.accumulated() as u64;
         let rel_mse = match &self.reference {
             Some((_, r)) if is_checkpoint(accumulated) => {

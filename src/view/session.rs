@@ -225,6 +225,12 @@ impl Session {
         self.accumulated = 0;
     }
 
+    /// Takes back a frame's image ([`FrameOutcome::image`]) once it is no longer needed, for the
+    /// next frame to write into instead of a fresh allocation.
+    pub fn recycle(&mut self, image: Vec<Vec3>) {
+        self.spare.image = image;
+    }
+
     /// Renders the next frame (VPLs → G-buffer → gather → filter) and adds it to the mean.
     /// The same stages as [`frame::render_frame`], with the VPL reuse step between the sampler
     /// and the gather.
@@ -289,6 +295,7 @@ impl Session {
             })
             .sum();
         let accumulate_time = t.elapsed();
+        // (The image leaves with the outcome; the frame loop hands it back, `Session::recycle`.)
         let (image, stats) = (std::mem::take(&mut frame.image), std::mem::take(&mut frame.stats));
         self.spare = frame.into_spare();
         FrameOutcome { image, stats, accumulate_time, motion, vpls_gathered, vpls_reused, non_finite }
