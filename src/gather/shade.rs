@@ -553,6 +553,7 @@ impl<'a> Gatherer<'a> {
     ) -> (RayStats, GatherEnergy) {
         let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
         let w = out.len() as u32;
+        let subsets = inter.row(y);
         let mut st = RayStats::default();
         // The packet groupings visit pixels out of order: their receivers are prepared first.
         let row_points: Vec<Option<Prepared>> = match self.tracing {
@@ -601,7 +602,7 @@ impl<'a> Gatherer<'a> {
                         if l.f == Vec3::ZERO {
                             continue;
                         }
-                        for ch in &chunks[inter.subset_of(x, y)] {
+                        for ch in &chunks[subsets.of(x)] {
                             let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
                             if lc.lanes == 0 {
                                 continue;
@@ -624,7 +625,7 @@ impl<'a> Gatherer<'a> {
                     }
                     // Any other receiver or VPL: the general kernels, the same batched rays.
                     let r = receivers[x as usize].as_ref().expect("a receiver kept for the general kernels");
-                    for &i in &inter.subsets[inter.subset_of(x, y)] {
+                    for &i in &inter.subsets[subsets.of(x)] {
                         if let Some((x, c, full, o, _)) = self.candidate(pt, r, x, i as usize) {
                             let add = |(x, c, full)| acc.add_light(x, c, full);
                             let target = vpls.position[i as usize];
@@ -666,7 +667,7 @@ impl<'a> Gatherer<'a> {
         }
         let mut energy = GatherEnergy::default();
         for (x, o) in out.iter_mut().enumerate() {
-            let s = inter.scales[inter.subset_of(x as u32, y)];
+            let s = inter.scales[subsets.of(x as u32)];
             let (sum, removed) = (acc.sum[x], acc.removed[x]);
             energy.kept += (luminance(sum) * s) as f64;
             energy.removed += (luminance(removed) * s) as f64;
