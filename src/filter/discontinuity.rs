@@ -68,17 +68,21 @@ impl PlaneLayout {
     /// never reaches a sum (tested with planes full of garbage).
     #[inline]
     pub fn fill_row(&self, row: &mut [f32], gathered: &[Vec3], albedo: &[Vec3], normal: &[Vec3], depth: &[f32]) {
-        let (pw, pad) = (self.pw, self.pad);
+        let (pw, pad, w) = (self.pw, self.pad, self.width);
         row[3 * pw..4 * pw].fill(f32::NAN);
-        for x in 0..self.width {
+        // Each plane's span and each input sliced to the row's width once, so the loop below
+        // carries no bounds checks (they and their reloaded bases were most of its time).
+        let mut spans = row.chunks_exact_mut(pw).map(|p| &mut p[pad..pad + w]);
+        let [nx, ny, nz, dp, rx, ry, rz]: [&mut [f32]; PLANES] = std::array::from_fn(|_| spans.next().unwrap());
+        let (gathered, albedo, normal, depth) = (&gathered[..w], &albedo[..w], &normal[..w], &depth[..w]);
+        for x in 0..w {
             let a = albedo[x];
             if a.min_element() <= 0.0 {
                 continue;
             }
             let (n, r) = (normal[x], gathered[x] / a);
-            for (k, v) in [n.x, n.y, n.z, depth[x], r.x, r.y, r.z].into_iter().enumerate() {
-                row[k * pw + pad + x] = v;
-            }
+            (nx[x], ny[x], nz[x], dp[x]) = (n.x, n.y, n.z, depth[x]);
+            (rx[x], ry[x], rz[x]) = (r.x, r.y, r.z);
         }
     }
 }
