@@ -148,7 +148,9 @@ impl PrimaryRays<'_> {
                     match &mut out.prepared {
                         Some(PreparedBand { slots, keep_receiver }) => {
                             let pt = r.map(|r| Prepared::new(scene, r));
-                            if pt.as_ref().is_some_and(*keep_receiver) {
+                            // (A pixel without a receiver writes its None: the band's buffer holds
+                            // the previous band's receivers.)
+                            if pt.as_ref().is_none_or(*keep_receiver) {
                                 out.receivers[i] = r.copied();
                             }
                             slots[i] = pt;
