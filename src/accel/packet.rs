@@ -618,12 +618,17 @@ fn occluded_lanes<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>) -> u32 {
 fn occluded_each<F: Lanes>(bvh: &WideBvh<8>, p: &CanonicalPacket<F>, hints: &mut [u32]) -> u32 {
     let mut blocked = 0;
     let mut m = p.active;
+    // The lanes' values unpacked once (read from the packet lane by lane, each went through a
+    // store and a reload per lane).
+    let shear = p.shear.lanes();
+    let [ox, oy, oz, rx, ry, rz] = [p.origin.x, p.origin.y, p.origin.z, p.rdir.x, p.rdir.y, p.rdir.z].map(F::to_array);
+    let t_max = p.t_max.to_array();
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
-        let origin = p.origin.lane(i);
-        let rdir = || p.rdir.lane(i).to_array();
-        if occluded_from_parts(bvh, p.shear.lane(i, origin), origin, p.t_max.lane(i), &mut hints[i], rdir) {
+        let origin = Vec3::new(ox.as_ref()[i], oy.as_ref()[i], oz.as_ref()[i]);
+        let rdir = || [rx.as_ref()[i], ry.as_ref()[i], rz.as_ref()[i]];
+        if occluded_from_parts(bvh, shear.lane(i, origin), origin, t_max.as_ref()[i], &mut hints[i], rdir) {
             blocked |= 1 << i;
         }
     }

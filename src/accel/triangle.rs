@@ -269,6 +269,43 @@ pub enum Axes<F: Lanes> {
     Mixed([[F; 2]; 3]),
 }
 
+/// A [`ShearPacket`]'s per-lane constants as scalars ([`ShearPacket::lanes`]).
+pub struct ShearLanes<F: Lanes> {
+    sx: F::Array,
+    sy: F::Array,
+    sz: F::Array,
+    axes: LaneAxes,
+}
+
+/// [`Axes`] with the masks as bits.
+enum LaneAxes {
+    Uniform([usize; 3]),
+    Mixed([[u32; 2]; 3]),
+}
+
+impl<F: Lanes> ShearLanes<F> {
+    /// Lane `i` as a single sheared ray from `origin` (that lane's origin): exactly the
+    /// [`ShearedRay::new`] of the lane, without redoing its divisions. (Read from the packet's
+    /// registers lane by lane, every value went through a store and a reload per lane.)
+    #[inline(always)]
+    pub fn lane(&self, i: usize, origin: Vec3) -> ShearedRay {
+        let [kx, ky, kz] = match &self.axes {
+            LaneAxes::Uniform(k) => *k,
+            LaneAxes::Mixed(bits) => bits.map(|[is0, is1]| {
+                if is0 >> i & 1 != 0 {
+                    0
+                } else if is1 >> i & 1 != 0 {
+                    1
+                } else {
+                    2
+                }
+            }),
+        };
+        let (sx, sy, sz) = (self.sx.as_ref()[i], self.sy.as_ref()[i], self.sz.as_ref()[i]);
+        ShearedRay { origin: origin.into(), kz, kx, ky, sx, sy, sz }
+    }
+}
+
 impl<F: Lanes> ShearPacket<F> {
     /// Packs the sheared rays of the lanes in `active` (other lanes get a copy of a valid one).
     pub fn new(rays: &[ShearedRay], active: u32) -> Self {
@@ -342,28 +379,15 @@ impl<F: Lanes> ShearPacket<F> {
         ShearPacket { o, sx: dx / dz, sy: dy / dz, sz: F::splat(1.0) / dz, axes }
     }
 
-    /// Lane `i` as a single sheared ray from `origin` (that lane's origin): exactly the
-    /// [`ShearedRay::new`] of the lane, without redoing its divisions.
-    #[inline]
-    pub fn lane(&self, i: usize, origin: Vec3) -> ShearedRay {
-        let [kx, ky, kz] = match &self.axes {
-            Axes::Uniform(k) => *k,
-            Axes::Mixed(sel) => {
-                // (Spelled out: an array map here was an out-of-line call whose result, read back
-                // through memory, stalled every lane of the gather's batched shadow rays.)
-                let axis = |j: usize| {
-                    if sel[j][0].bitmask() >> i & 1 != 0 {
-                        0
-                    } else if sel[j][1].bitmask() >> i & 1 != 0 {
-                        1
-                    } else {
-                        2
-                    }
-                };
-                [axis(0), axis(1), axis(2)]
-            }
+    /// The lanes' constants as scalars, unpacked once for tracing the lanes one by one
+    /// ([`ShearLanes::lane`]).
+    #[inline(always)]
+    pub fn lanes(&self) -> ShearLanes<F> {
+        let axes = match &self.axes {
+            Axes::Uniform(k) => LaneAxes::Uniform(*k),
+            Axes::Mixed(sel) => LaneAxes::Mixed(sel.map(|s| s.map(|m| m.bitmask()))),
         };
-        ShearedRay { origin: origin.into(), kz, kx, ky, sx: self.sx.lane(i), sy: self.sy.lane(i), sz: self.sz.lane(i) }
+        ShearLanes { sx: self.sx.to_array(), sy: self.sy.to_array(), sz: self.sz.to_array(), axes }
     }
 
     /// A corner relative to each lane's origin, in the lane's permuted axes.
