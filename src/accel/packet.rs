@@ -55,6 +55,21 @@ impl<F: Lanes> PacketHits<F> {
         self.tri_bits.lane_bits(i)
     }
 
+    /// The first `out.len()` lanes as single-ray results, with the lanes' values unpacked once
+    /// (not through a store and a reload per lane and value, as [`PacketHits::lane`] in a loop).
+    #[inline(always)]
+    pub fn write_lanes(&self, out: &mut [Option<Hit>]) {
+        let [t, tri, b1, b2] = [self.t, self.tri_bits, self.b1, self.b2].map(F::to_array);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = (self.hit >> i & 1 != 0).then(|| Hit {
+                t: t.as_ref()[i],
+                tri: tri.as_ref()[i].to_bits(),
+                b1: b1.as_ref()[i],
+                b2: b2.as_ref()[i],
+            });
+        }
+    }
+
     /// Lane `i` as a single-ray result.
     #[inline]
     pub fn lane(&self, i: usize) -> Option<Hit> {
