@@ -111,7 +111,8 @@ pub struct Session {
     camera: Camera,
     pending: Motion,
     history: reuse::VplHistory,
-    /// The previous frame's G-buffer, whose allocation the next frame reuses.
+    /// The previous frame's per-pixel buffers (G-buffer, light, filter planes, and the image
+    /// once the frame loop hands it back), whose allocations the next frame reuses.
     spare: frame::Spare,
     frame_index: u64,
     mean: Vec<Vec3>,
