@@ -176,16 +176,16 @@ impl GBuffer {
                 width: w,
                 height: h,
                 receivers: Vec::new(),
-                emitted: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-                albedo: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-                normal: (0..n).into_par_iter().map(|_| Vec3::ZERO).collect(),
-                depth: (0..n).into_par_iter().map(|_| 0.0).collect(),
+                emitted: super::fresh(n, Vec3::ZERO),
+                albedo: super::fresh(n, Vec3::ZERO),
+                normal: super::fresh(n, Vec3::ZERO),
+                depth: super::fresh(n, 0.0),
             }
         };
         if !with_receivers {
             g.receivers = Vec::new();
         } else if g.receivers.len() != n {
-            g.receivers = (0..n).into_par_iter().map(|_| None).collect();
+            g.receivers = super::fresh(n, None);
         }
         g
     }

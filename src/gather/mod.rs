@@ -171,8 +171,9 @@ pub fn trace_and_gather(
     Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes }
 }
 
-/// `n` copies of `v`, written in parallel.
-fn fresh<T: Copy + Send + Sync>(n: usize, v: T) -> Vec<T> {
+/// `n` copies of `v`, written in parallel (a serial fill of a frame-sized buffer, and its page
+/// faults, held up both cores).
+pub(crate) fn fresh<T: Copy + Send + Sync>(n: usize, v: T) -> Vec<T> {
     (0..n).into_par_iter().map(|_| v).collect()
 }
 
