@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, PlaneLayout, filter_planes};
-use crate::gather::{self, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
+use crate::gather::{self, GBuffer, GBufferUse, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -86,6 +86,8 @@ pub struct FrameStats {
     pub rays: RayStats,
     /// Energy kept and removed by clamping.
     pub energy: GatherEnergy,
+    /// Frames gathered from a held G-buffer ([`GBufferUse::Reuse`]), no camera rays traced.
+    pub gbuffer_reused: u64,
 }
 
 impl std::ops::AddAssign<&FrameStats> for FrameStats {
@@ -96,6 +98,7 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
         self.filter_time += o.filter_time;
         self.rays += o.rays;
         self.energy += o.energy;
+        self.gbuffer_reused += o.gbuffer_reused;
         self.sampler.candidates += o.sampler.candidates;
         self.sampler.kept += o.sampler.kept;
         self.sampler.paths += o.sampler.paths;
@@ -172,7 +175,7 @@ pub fn render_frame_reusing(
     let (vpls, sstats) = sampler.sample(scene, accel, camera, settings.vpls, seed);
     stats.vpl_time = t.elapsed();
     stats.sampler = sstats;
-    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, spare)
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, spare, GBufferUse::Trace)
 }
 
 /// The frame pipeline after VPL sampling (G-buffer, gather, filter).
@@ -185,13 +188,15 @@ pub fn gather_frame(
     seed: u64,
     stats: FrameStats,
 ) -> Frame {
-    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, Spare::default())
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, Spare::default(), GBufferUse::Trace)
 }
 
 /// [`gather_frame`] writing the G-buffer, the gathered light, the filter's planes and its
 /// output into the allocations of `spare` (the previous frame's, [`Frame::into_spare`]) where
 /// their sizes match: what a frame loop uses. They are not cleared (each is written before it
-/// is read); allocating and zeroing them afresh cost ~1 ms a frame at 512².
+/// is read); allocating and zeroing them afresh cost ~1 ms a frame at 512². `gbuffer` says
+/// whether to trace the G-buffer, and whether to hold it for, or reuse it from, another frame
+/// through the same camera ([`GBufferUse`]; `spare` carries what was held).
 pub fn gather_frame_reusing(
     scene: &Scene,
     accel: &Accel,
@@ -201,6 +206,7 @@ pub fn gather_frame_reusing(
     seed: u64,
     mut stats: FrameStats,
     spare: Spare,
+    gbuffer: GBufferUse,
 ) -> Frame {
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
@@ -220,12 +226,14 @@ pub fn gather_frame_reusing(
         g_max: g_bound(scene, settings.clamp),
         min_distance: settings.min_distance,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
+        gbuffer,
     };
-    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes } =
+    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes, held, reused } =
         gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
     stats.energy = energy;
     stats.primary_time = primary_time;
     stats.shadow_time = shadow_time;
+    stats.gbuffer_reused = reused as u64;
     let t = Instant::now();
     // (The planes were filled during the pass: their time counts there.)
     // The image: filtered light plus the emission seen directly, written by the filter as it
@@ -261,7 +269,8 @@ pub fn gather_frame_reusing(
         }
     };
     stats.filter_time = t.elapsed();
-    let scratch = Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes }, image: Vec::new() };
+    let scratch =
+        Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes, held }, image: Vec::new() };
     Frame { image, gbuffer: gbuf, vpls, stats, scratch }
 }
 

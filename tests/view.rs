@@ -171,6 +171,7 @@ fn vpl_reuse_keeps_the_mean_brightness_of_the_frames() {
             seed,
             fresh_chains: fresh,
             reuse_frames: k,
+            gbuffer_frames: 4,
         };
         let mut s = Session::new(scene, accel, fly.camera(32, 32), settings);
         let path = CameraPath::Builtin(BuiltinPath::Orbit);

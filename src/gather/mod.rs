@@ -20,6 +20,7 @@ use crate::filter::PlaneLayout;
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 use crate::vpl::VplSet;
+use crate::vpl::transfer::Receiver;
 use gbuffer::{BandSlices, PreparedBand, PrimaryRays};
 use shade::Gatherer;
 
@@ -44,11 +45,73 @@ pub struct OnePass<'a> {
     pub min_distance: f32,
     /// Fill the discontinuity buffer's planes of this layout too (see [`Gathered::planes`]).
     pub planes: Option<PlaneLayout>,
+    /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
+    pub gbuffer: GBufferUse,
+}
+
+/// Where a pass's G-buffer comes from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GBufferUse {
+    /// Camera rays traced for this pass.
+    #[default]
+    Trace,
+    /// Camera rays traced for this pass, and the receivers kept ([`Held`]) for later passes
+    /// through the same camera.
+    TraceAndHold,
+    /// The G-buffer and receivers held by an earlier `TraceAndHold` pass, when they were traced
+    /// through the same camera with the same settings (its seed, hence its jitter, is kept);
+    /// otherwise as `TraceAndHold`. A still camera's frames differ only in their VPLs then.
+    Reuse,
+}
+
+/// Receivers kept from a [`GBufferUse::TraceAndHold`] pass, prepared for the gather, for later
+/// passes to gather from instead of tracing camera rays again. They belong to the G-buffer
+/// arrays lent with them ([`Lent::gbuffer`]); a pass that traces anew without holding forgets
+/// them, since it overwrites those arrays.
+#[derive(Debug, Default)]
+pub struct Held {
+    /// What they were traced for; None when nothing is held.
+    key: Option<HeldKey>,
+    /// Per pixel.
+    prepared: Vec<Option<shade::Prepared>>,
+    /// Per band of rows: the receivers the gather reads besides their prepared form (pixel in
+    /// the band, receiver).
+    kept: Vec<Vec<(u32, Receiver)>>,
+}
+
+/// The camera and settings a held G-buffer was traced with.
+#[derive(Clone, Debug, PartialEq)]
+struct HeldKey {
+    camera: Camera,
+    jitter: bool,
+    max_specular: u32,
+    tracing: Tracing,
+    /// Every receiver was kept (else only those [`shade::Gatherer::keeps_receiver`] keeps for a
+    /// gather with the eight-VPL kernel).
+    all_receivers: bool,
+}
+
+impl Held {
+    /// Whether a pass with `key` over `pixels` pixels in `bands` bands can gather from these.
+    fn serves(&self, key: &HeldKey, pixels: usize, bands: usize) -> bool {
+        self.key.as_ref().is_some_and(|k| {
+            let HeldKey { camera, jitter, max_specular, tracing, all_receivers } = k;
+            (camera, jitter, max_specular, tracing) == (&key.camera, &key.jitter, &key.max_specular, &key.tracing)
+                && (*all_receivers || !key.all_receivers)
+        }) && self.prepared.len() == pixels
+            && self.kept.len() == bands
+    }
+
+    /// Whether a G-buffer is held.
+    pub fn is_held(&self) -> bool {
+        self.key.is_some()
+    }
 }
 
 /// Allocations lent to [`trace_and_gather`] by an earlier pass (a frame loop's previous frame),
 /// each used when its size matches and replaced by a fresh one otherwise. They need no
-/// clearing: the pass writes every entry it reads (tested with garbage in them).
+/// clearing: the pass writes every entry it reads (tested with garbage in them), except the
+/// G-buffer and the receivers that [`GBufferUse::Reuse`] gathers from.
 #[derive(Debug, Default)]
 pub struct Lent {
     /// The G-buffer ([`GBuffer::reusing`]).
@@ -57,6 +120,8 @@ pub struct Lent {
     pub light: Vec<Vec3>,
     /// The filter's planes ([`Gathered::planes`]).
     pub planes: Vec<f32>,
+    /// The receivers of the G-buffer above, when an earlier pass held them.
+    pub held: Held,
 }
 
 /// The result of [`trace_and_gather`].
@@ -76,12 +141,19 @@ pub struct Gathered {
     /// The discontinuity buffer's planes ([`crate::filter::filter_planes`]), filled band by
     /// band while the band's G-buffer and light are in cache, when [`OnePass::planes`] asks.
     pub planes: Option<Vec<f32>>,
+    /// The receivers held for later passes (see [`GBufferUse`]).
+    pub held: Held,
+    /// The pass gathered from a held G-buffer instead of tracing camera rays.
+    pub reused: bool,
 }
 
 /// [`gbuffer::trace`] and [`gather`] in one pass: each band of rows is traced and then gathered
 /// at once, while its receivers are in cache, instead of writing the whole frame's receivers
 /// (~150 bytes a pixel, 40 MB at 512²) to memory and reading them back. The same image and
 /// the same G-buffer arrays, bit for bit (tested). `lent` lends its allocations (see [`Lent`]).
+/// With [`GBufferUse::Reuse`] and receivers held for this camera, no camera ray is traced: the
+/// bands are gathered from the held receivers (≈ 90 bytes a pixel read back from memory, which
+/// costs far less than tracing them).
 pub fn trace_and_gather(
     scene: &Scene,
     accel: &Accel,
@@ -91,27 +163,66 @@ pub fn trace_and_gather(
     stats: &mut RayStats,
 ) -> Gathered {
     let start = Instant::now();
-    let OnePass { camera, seed, jitter, max_specular, tracing, interleave, g_max, min_distance, planes: layout } =
-        *pass;
+    let OnePass {
+        camera,
+        seed,
+        jitter,
+        max_specular,
+        tracing,
+        interleave,
+        g_max,
+        min_distance,
+        planes: layout,
+        gbuffer: use_gbuffer,
+    } = *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
     let (w, h) = (camera.width, camera.height);
-    let Lent { gbuffer, light, planes } = lent;
-    let mut g = GBuffer::reusing(gbuffer, w, h, false);
+    let Lent { gbuffer, light, planes, mut held } = lent;
     let band_len = (rays.band_rows() * w) as usize;
+    let n = (w * h) as usize;
+    let n_bands = (h as usize).div_ceil(rays.band_rows() as usize);
+    let key = HeldKey {
+        camera: camera.clone(),
+        jitter,
+        max_specular,
+        tracing,
+        all_receivers: gatherer.keeps_all_receivers(),
+    };
+    let same_arrays = gbuffer.width == w && gbuffer.height == h && gbuffer.emitted.len() == n;
+    let reuse = use_gbuffer == GBufferUse::Reuse && same_arrays && held.serves(&key, n, n_bands);
+    let hold = !reuse && use_gbuffer != GBufferUse::Trace;
+    if !reuse {
+        // The G-buffer arrays are about to be traced anew: what was held no longer matches them.
+        held.key = None;
+    }
+    if hold {
+        if held.prepared.len() != n {
+            held.prepared = fresh(n, None);
+        }
+        held.kept.resize_with(n_bands, Vec::new);
+        held.kept.truncate(n_bands);
+    }
+    let mut g = GBuffer::reusing(gbuffer, w, h, false);
     // Fresh buffers are zeroed in parallel: a serial zeroing of the planes' 7.6 MB at 512² held
     // up both cores. Lent ones are not cleared at all (zeroing both each frame cost ~1 ms).
-    let n = (w * h) as usize;
     let mut light = if light.len() == n { light } else { fresh(n, Vec3::ZERO) };
     let mut planes: Option<Vec<f32>> = layout.map(|l| {
         let len = l.row_len() * h as usize;
         if planes.len() == len { planes } else { fresh(len, 0.0) }
     });
-    let n_bands = (h as usize).div_ceil(rays.band_rows() as usize);
     let mut plane_bands: Vec<Option<&mut [f32]>> = match (&mut planes, layout) {
         (Some(p), Some(l)) => p.chunks_mut(l.row_len() * rays.band_rows() as usize).map(Some).collect(),
         _ => (0..n_bands).map(|_| None).collect(),
     };
+    // Each band's share of the held receivers, when the pass holds or reuses them.
+    type HeldBand<'h> = Option<(&'h mut [Option<shade::Prepared>], &'h mut Vec<(u32, Receiver)>)>;
+    let mut held_bands: Vec<HeldBand<'_>> = if reuse || hold {
+        held.prepared.chunks_mut(band_len.max(1)).zip(held.kept.iter_mut()).map(Some).collect()
+    } else {
+        (0..n_bands).map(|_| None).collect()
+    };
+    let keep_receiver = gatherer.keeps_receiver();
     // Per band: ray statistics, energy, and thread time in each half.
     type Band = (RayStats, GatherEnergy, Duration, Duration);
     let bands: Vec<Band> = light
@@ -121,23 +232,56 @@ pub fn trace_and_gather(
         .zip(g.normal.par_chunks_mut(band_len.max(1)))
         .zip(g.depth.par_chunks_mut(band_len.max(1)))
         .zip(plane_bands.par_iter_mut())
+        .zip(held_bands.par_iter_mut())
         .enumerate()
         .map_init(
             <(Vec<_>, Vec<_>)>::default,
-            |(receivers, prepared), (band, (((((light, emitted), albedo), normal), depth), plane_band))| {
+            |(receivers, prepared),
+             (band, ((((((light, emitted), albedo), normal), depth), plane_band), held_band))| {
                 let t = Instant::now();
                 receivers.resize(light.len(), None);
-                prepared.resize(light.len(), None);
                 let y0 = band as u32 * rays.band_rows();
-                let slices = BandSlices {
-                    receivers,
-                    prepared: Some(PreparedBand { slots: prepared, keep_receiver: gatherer.keeps_receiver() }),
-                    emitted,
-                    albedo,
-                    normal,
-                    depth,
+                macro_rules! slices {
+                    ($slots:expr) => {
+                        BandSlices {
+                            receivers: &mut receivers[..],
+                            prepared: Some(PreparedBand { slots: $slots, keep_receiver }),
+                            emitted: &mut emitted[..],
+                            albedo: &mut albedo[..],
+                            normal: &mut normal[..],
+                            depth: &mut depth[..],
+                        }
+                    };
+                }
+                let (mut st, prepared): (RayStats, &[Option<shade::Prepared>]) = match held_band.take() {
+                    // The held band: its receivers as the band's buffer holds traced ones (every
+                    // one when all are kept, else those the gather reads).
+                    Some((slots, kept)) if reuse => {
+                        if key.all_receivers {
+                            receivers.fill(None);
+                        }
+                        for &(i, r) in kept.iter() {
+                            receivers[i as usize] = Some(r);
+                        }
+                        (RayStats::default(), slots)
+                    }
+                    Some((slots, kept)) => {
+                        let st = rays.band(y0, slices!(&mut *slots));
+                        kept.clear();
+                        for (i, pt) in slots.iter().enumerate() {
+                            if let (Some(pt), Some(r)) = (pt, &receivers[i])
+                                && keep_receiver(pt)
+                            {
+                                kept.push((i as u32, *r));
+                            }
+                        }
+                        (st, slots)
+                    }
+                    None => {
+                        prepared.resize(light.len(), None);
+                        (rays.band(y0, slices!(&mut prepared[..])), &prepared[..])
+                    }
                 };
-                let mut st = rays.band(y0, slices);
                 let t_primary = t.elapsed();
                 let mut energy = GatherEnergy::default();
                 let row = w as usize;
@@ -158,6 +302,10 @@ pub fn trace_and_gather(
         )
         .collect();
     drop(plane_bands);
+    drop(held_bands);
+    if hold {
+        held.key = Some(key);
+    }
     let (mut energy, mut primary, mut shadow) = (GatherEnergy::default(), Duration::ZERO, Duration::ZERO);
     for (st, e, p, s) in bands {
         *stats += st;
@@ -168,7 +316,7 @@ pub fn trace_and_gather(
     let wall = start.elapsed();
     let share = primary.as_secs_f64() / (primary + shadow).as_secs_f64().max(1e-12);
     let primary_time = wall.mul_f64(share);
-    Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes }
+    Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes, held, reused: reuse }
 }
 
 /// `n` copies of `v`, written in parallel (a serial fill of a frame-sized buffer, and its page
@@ -284,6 +432,7 @@ mod tests {
                     g_max,
                     min_distance,
                     planes: Some(layout),
+                    gbuffer: GBufferUse::Trace,
                 };
                 // Three times: fresh arrays, the first pass's arrays reused, and reused arrays
                 // filled with garbage (NaN, infinities, huge and negative values): nothing a pass
@@ -352,9 +501,128 @@ mod tests {
                     );
                     let after: Vec<Vec3> = banded.iter().zip(&gb.emitted).map(|(f, e)| *f + *e).collect();
                     assert!(plus == after, "{case}: emission added in the filter differs");
-                    spare = (Lent { gbuffer: one.gbuffer, light: one.light, planes }, banded);
+                    spare = (Lent { gbuffer: one.gbuffer, light: one.light, planes, held: one.held }, banded);
                 }
             }
+        }
+    }
+
+    /// A held G-buffer gathers another VPL set as the pass that traced it would have: a pass
+    /// with [`GBufferUse::Reuse`] (another seed, so traced afresh its jitter would differ, and
+    /// lent light and planes full of garbage) gives the light, planes, energy and G-buffer of a
+    /// traced pass with the holding pass's seed, bit for bit, and traces no camera ray. It falls
+    /// back to tracing when the camera moved, when a traced pass overwrote the arrays since,
+    /// and when the new VPLs need receivers the holding pass did not keep (a spot VPL: all of
+    /// them). On the Cornell box, and on the glass sphere (receivers behind specular bounces,
+    /// chosen by the seed's stream).
+    #[test]
+    fn held_gbuffer_gathers_as_the_pass_that_traced_it() {
+        for (name, desc) in [("cornell", builtin::cornell()), ("glass-sphere", builtin::glass_sphere())] {
+            let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
+            let accel = Accel::build(&scene.mesh);
+            let mut camera = scene.camera.clone();
+            (camera.width, camera.height) = (45, 29);
+            let moved = {
+                let e = camera.position + Vec3::X * 0.01 * scene.bounds.diagonal();
+                Camera::look_at(e, e + camera.forward, Vec3::Y, camera.fov_y_radians, 45, 29)
+            };
+            let sample = |seed: u64| Sir::new(4).sample(&scene, &accel, &camera, 96, seed).0;
+            let (vpls_a, vpls_b) = (sample(3), sample(9));
+            let mut vpls_spot = vpls_b.clone();
+            let axis = Vec3::new(0.0, -1.0, 0.0);
+            vpls_spot.push(Vpl {
+                position: scene.bounds.center(),
+                normal: Vec3::ZERO,
+                radiance: Vec3::splat(0.5),
+                lobe: Some(VplLobe::Spot { axis, cos_inner: 0.9, cos_outer: 0.7 }),
+                count: 1,
+                flags: 0,
+                length: 1,
+                group: 0,
+            });
+            let g_max = g_bound(&scene, 300.0);
+            let filter = DiscontinuitySettings::new(4, 3);
+            let layout = PlaneLayout::new(camera.width, &filter);
+            let run = |camera: &Camera, vpls: &VplSet, seed: u64, gbuffer: GBufferUse, lent: Lent| {
+                let inter = Interleave::new(vpls, 4, 3);
+                let pass = OnePass {
+                    camera,
+                    seed,
+                    jitter: true,
+                    max_specular: 4,
+                    tracing: Tracing::PrimaryPackets,
+                    interleave: &inter,
+                    g_max,
+                    min_distance: 0.0,
+                    planes: Some(layout),
+                    gbuffer,
+                };
+                let mut st = RayStats::default();
+                let out = trace_and_gather(&scene, &accel, vpls, &pass, lent, &mut st);
+                (out, st)
+            };
+            let traced =
+                |camera: &Camera, vpls: &VplSet, seed: u64| run(camera, vpls, seed, GBufferUse::Trace, Lent::default());
+            let same = |case: &str, (a, sa): &(Gathered, RayStats), (b, sb): &(Gathered, RayStats)| {
+                assert!(a.light == b.light, "{name} {case}: light");
+                // (Planes hold NaN depths and unread entries: compared through the filter.)
+                let filtered = |g: &Gathered| {
+                    let gb = &g.gbuffer;
+                    let planes = g.planes.as_ref().unwrap();
+                    let (a, n, d) = (&gb.albedo, &gb.normal, &gb.depth);
+                    filter_planes(&layout, planes, gb.height, &g.light, a, n, d, &filter, None, Vec::new())
+                };
+                assert!(filtered(a) == filtered(b), "{name} {case}: filtered image");
+                assert_eq!((a.energy.kept, a.energy.removed), (b.energy.kept, b.energy.removed), "{name} {case}");
+                let (ga, gb) = (&a.gbuffer, &b.gbuffer);
+                assert!(ga.emitted == gb.emitted && ga.albedo == gb.albedo, "{name} {case}: G-buffer");
+                assert!(ga.normal == gb.normal && ga.depth == gb.depth, "{name} {case}: G-buffer");
+                assert_eq!(sa.shadow, sb.shadow, "{name} {case}: shadow rays");
+            };
+            let garbage = |mut lent: Lent| {
+                lent.light.iter_mut().for_each(|v| *v = Vec3::splat(f32::NAN));
+                lent.planes.iter_mut().for_each(|v| *v = f32::INFINITY);
+                lent
+            };
+            let lend =
+                |g: Gathered| Lent { gbuffer: g.gbuffer, light: g.light, planes: g.planes.unwrap(), held: g.held };
+
+            // Hold at seed 5, then reuse at seeds 11 and 12 with other VPLs.
+            let hold = run(&camera, &vpls_a, 5, GBufferUse::TraceAndHold, Lent::default());
+            same("holding pass", &hold, &traced(&camera, &vpls_a, 5));
+            assert!(!hold.0.reused && hold.0.held.is_held());
+            let reused = run(&camera, &vpls_b, 11, GBufferUse::Reuse, garbage(lend(hold.0)));
+            assert!(reused.0.reused, "{name}: the held G-buffer was not reused");
+            assert_eq!(reused.1.closest, 0, "{name}: a reusing pass traced camera rays");
+            same("reused", &reused, &traced(&camera, &vpls_b, 5));
+            assert_ne!(traced(&camera, &vpls_b, 11).0.light, reused.0.light, "{name}: the seed changes a traced pass");
+            let again = run(&camera, &vpls_a, 12, GBufferUse::Reuse, garbage(lend(reused.0)));
+            assert!(again.0.reused);
+            same("reused twice", &again, &traced(&camera, &vpls_a, 5));
+
+            // A moved camera traces (and holds) anew.
+            let after_move = run(&moved, &vpls_b, 13, GBufferUse::Reuse, lend(again.0));
+            assert!(!after_move.0.reused && after_move.0.held.is_held());
+            same("moved", &after_move, &traced(&moved, &vpls_b, 13));
+
+            // A plain traced pass forgets what was held (it overwrote the arrays).
+            let plain = run(&moved, &vpls_a, 14, GBufferUse::Trace, lend(after_move.0));
+            assert!(!plain.0.held.is_held());
+            let after_plain = run(&moved, &vpls_b, 15, GBufferUse::Reuse, lend(plain.0));
+            assert!(!after_plain.0.reused);
+            same("after a plain pass", &after_plain, &traced(&moved, &vpls_b, 15));
+
+            // Diffuse VPLs keep only non-Lambertian receivers; a spot VPL needs them all.
+            let spot = run(&moved, &vpls_spot, 16, GBufferUse::Reuse, lend(after_plain.0));
+            assert!(!spot.0.reused, "{name}: reused without the receivers a spot VPL needs");
+            same("spot after diffuse", &spot, &traced(&moved, &vpls_spot, 16));
+            // Held with all receivers, it serves both.
+            let diffuse = run(&moved, &vpls_a, 17, GBufferUse::Reuse, lend(spot.0));
+            assert!(diffuse.0.reused);
+            same("diffuse after spot", &diffuse, &traced(&moved, &vpls_a, 16));
+            let spot_again = run(&moved, &vpls_spot, 18, GBufferUse::Reuse, garbage(lend(diffuse.0)));
+            assert!(spot_again.0.reused);
+            same("spot reused", &spot_again, &traced(&moved, &vpls_spot, 16));
         }
     }
 }

@@ -171,7 +171,7 @@ impl<T: Copy + Default> ShadowBatch<T> {
 /// A G-buffer receiver prepared for the gather's inner loop: the parts of
 /// [`unshadowed`] and [`shadow_segment`] that depend on the receiver alone, computed once per
 /// pixel instead of once per VPL–pixel pair.
-#[derive(Clone)]
+#[derive(Clone, Copy, Debug)]
 pub(crate) struct Prepared {
     p: Vec3,
     /// Front geometric normal and the origin offset along it ([`crate::accel::ray_offset`]).
@@ -182,7 +182,7 @@ pub(crate) struct Prepared {
 }
 
 /// The factors of a Lambertian receiver's `β · f(wo, wi) · |cos θ_i|` that do not depend on wi.
-#[derive(Clone)]
+#[derive(Clone, Copy, Debug)]
 struct LambertReceiver {
     /// The BSDF's geometric normal (oriented towards wo) and `wo · ng_o`.
     ng_o: Vec3,
@@ -535,10 +535,13 @@ impl<'a> Gatherer<'a> {
 
     /// Which prepared receivers [`Gatherer::row`] also needs the receiver of.
     pub(crate) fn keeps_receiver(&self) -> fn(&Prepared) -> bool {
-        match (self.tracing, &self.chunks) {
-            (Tracing::Single | Tracing::PrimaryPackets, Some(_)) => |pt| pt.lambert.is_none(),
-            _ => |_| true,
-        }
+        if self.keeps_all_receivers() { |_| true } else { |pt| pt.lambert.is_none() }
+    }
+
+    /// Whether [`Gatherer::row`] needs every receiver (the packet groupings, or VPLs outside the
+    /// eight-VPL kernel), not only the non-Lambertian ones.
+    pub(crate) fn keeps_all_receivers(&self) -> bool {
+        !matches!((self.tracing, &self.chunks), (Tracing::Single | Tracing::PrimaryPackets, Some(_)))
     }
 
     /// Gathers row `y` from its receivers into `out` (VPL-transported light, interleave-scaled).

@@ -103,6 +103,11 @@ pub struct ViewArgs {
     /// share about (K−1)/K of their VPLs. 1 turns reuse off; a still camera never reuses.
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub vpl_reuse: u32,
+    /// While the camera stands still, trace the G-buffer (camera rays, receivers) every K-th
+    /// frame and gather the frames in between from it: they differ only in their VPLs. The
+    /// anti-aliasing jitter then moves every K frames. 1 traces every frame.
+    #[arg(long, value_name = "K", default_value_t = 4)]
+    pub gbuffer_frames: u32,
     /// Headless, still camera: print the relMSE of the accumulated image against this EXR
     /// after 1, 2, 4, 8… frames.
     #[arg(long, value_name = "REF.exr", requires = "headless", conflicts_with = "camera_path")]
@@ -173,6 +178,9 @@ impl ViewArgs {
         if !(1..=64).contains(&self.vpl_reuse) {
             return bad(format!("--vpl-reuse {} is outside 1…64", self.vpl_reuse));
         }
+        if !(1..=64).contains(&self.gbuffer_frames) {
+            return bad(format!("--gbuffer-frames {} is outside 1…64", self.gbuffer_frames));
+        }
         if self.threads == Some(0) {
             return bad("--threads must be at least 1".into());
         }
@@ -202,6 +210,7 @@ impl ViewArgs {
                 seed: self.seed,
                 fresh_chains: self.fresh_chains,
                 reuse_frames: self.vpl_reuse,
+                gbuffer_frames: self.gbuffer_frames,
             },
             scale: self.scale,
             curve: self.exposure.map_or(ToneCurve::Reinhard, ToneCurve::Exposure),
@@ -260,6 +269,8 @@ mod tests {
             (&["--width", "0"][..], "--width"),
             (&["--add-light", "-2"][..], "--add-light"),
             (&["--vpl-reuse", "0"][..], "--vpl-reuse"),
+            (&["--gbuffer-frames", "0"][..], "--gbuffer-frames"),
+            (&["--gbuffer-frames", "65"][..], "--gbuffer-frames"),
         ] {
             let e = parse(args).options().unwrap_err().to_string();
             assert!(e.contains(flag), "{args:?}: {e}");

@@ -209,6 +209,7 @@ mod tests {
             seed: 0,
             fresh_chains: false,
             reuse_frames: 4,
+            gbuffer_frames: 4,
         };
         Session::new(scene, accel, camera, settings)
     }

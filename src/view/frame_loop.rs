@@ -97,6 +97,8 @@ pub struct Totals {
     pub vpls: u64,
     /// Of which reused from the previous frame.
     pub vpls_reused: u64,
+    /// Frames gathered from a held G-buffer (still camera, no camera rays).
+    pub gbuffers_reused: u64,
 }
 
 impl Totals {
@@ -235,6 +237,7 @@ impl FrameLoop {
         t.jumps += (outcome.motion == Motion::Jump && t.frames > 1) as u64;
         t.vpls += outcome.vpls_gathered as u64;
         t.vpls_reused += outcome.vpls_reused as u64;
+        t.gbuffers_reused += s.gbuffer_reused;
 
         let flicker = self.flicker.as_mut().and_then(|m| m.push(&outcome.image));
         self.session.recycle(outcome.image);
@@ -286,7 +289,7 @@ impl FrameLoop {
         format!(
             "view {scene} ({mode}): {} frames {w}×{h}, {} VPLs {}, interleave {n}x{m}, clamp {}, filter {}, {}: \
              {:.2} frames/s ({:.1} ms/frame: VPLs {:.1}, primary {:.1}, shadow {:.1}, filter {:.1}, display {:.1} ms), \
-             {:.2} Mrays/s, acceptance {}{}{}{}",
+             {:.2} Mrays/s, acceptance {}{}{}{}{}",
             t.frames,
             s.frame.vpls,
             self.session.sampler_name(),
@@ -304,6 +307,14 @@ impl FrameLoop {
             t.acceptance().map_or("-".to_string(), |a| format!("{:.1} %", 100.0 * a)),
             if t.vpls_reused > 0 {
                 format!(", {:.0} % of gathered VPLs reused", 100.0 * t.vpls_reused as f64 / t.vpls.max(1) as f64)
+            } else {
+                String::new()
+            },
+            if t.gbuffers_reused > 0 {
+                format!(
+                    ", {} of {} frames gathered from a held G-buffer (traced every {} while still)",
+                    t.gbuffers_reused, t.frames, s.gbuffer_frames
+                )
             } else {
                 String::new()
             },

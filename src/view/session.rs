@@ -13,6 +13,14 @@
 //! After a small move the session also reuses VPLs ([`super::reuse`]): the frame asks the
 //! sampler for ⌈m/K⌉ new VPLs and gathers them pooled with the most recent VPLs of the previous
 //! frame, m in all (K = [`SessionSettings::reuse_frames`]; 1, or fresh chains, turns it off).
+//!
+//! While the camera stands still, the G-buffer is traced every [`SessionSettings::gbuffer_frames`]-th
+//! frame and held for the frames in between ([`GBufferUse`]): they differ from it only in their
+//! VPLs, so they skip the camera rays and the receivers (a quarter of a frame's time on the
+//! Cornell box). The anti-aliasing jitter then moves once per held G-buffer instead of every
+//! frame; the running mean converges to the same image (every held G-buffer's jitter is drawn
+//! as before), its pixel-edge noise more slowly per frame. The first frame after a change
+//! samples pixel centres and is not held (the camera may move again).
 
 use std::time::{Duration, Instant};
 
@@ -22,6 +30,7 @@ use rayon::prelude::*;
 use super::reuse;
 use crate::accel::Accel;
 use crate::frame::{self, FrameSettings, FrameStats};
+use crate::gather::GBufferUse;
 use crate::options::VplSamplerArg;
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
@@ -66,6 +75,19 @@ pub fn frame_seed(seed: u64, index: u64) -> u64 {
     hash_words(&[seed, TAG_VIEW_FRAME, index])
 }
 
+/// The G-buffer of a frame that joins a running mean of `accumulated` frames, traced every
+/// `every`-th frame while the camera stands still (module doc). The first frame after a change
+/// (`accumulated` 0) is traced and not held; then frames 1, 1 + every, 1 + 2·every… trace and
+/// hold, and the others reuse.
+pub fn gbuffer_use(accumulated: u32, every: u32) -> GBufferUse {
+    match accumulated {
+        _ if every <= 1 => GBufferUse::Trace,
+        0 => GBufferUse::Trace,
+        a if (a - 1) % every == 0 => GBufferUse::TraceAndHold,
+        _ => GBufferUse::Reuse,
+    }
+}
+
 /// What the viewer needs to start rendering.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SessionSettings {
@@ -81,6 +103,9 @@ pub struct SessionSettings {
     pub fresh_chains: bool,
     /// VPL reuse factor K after small moves: ⌈m/K⌉ new VPLs per frame (1: no reuse).
     pub reuse_frames: u32,
+    /// While the camera stands still, trace the G-buffer every this many frames and gather the
+    /// frames in between from it (1: trace every frame).
+    pub gbuffer_frames: u32,
 }
 
 /// One rendered frame as the loop sees it.
@@ -269,9 +294,10 @@ impl Session {
         // change samples pixel centres, so a moving camera does not shimmer at edges.
         let mut settings = self.settings.frame;
         settings.jitter &= self.accumulated > 0;
+        let gbuffer = gbuffer_use(self.accumulated, self.settings.gbuffer_frames);
         let spare = std::mem::take(&mut self.spare);
-        let mut frame =
-            frame::gather_frame_reusing(&self.scene, &self.accel, &self.camera, vpls, &settings, seed, stats, spare);
+        let (scene, accel, camera) = (&self.scene, &self.accel, &self.camera);
+        let mut frame = frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, gbuffer);
         self.frame_index += 1;
 
         let t = Instant::now();
@@ -324,6 +350,55 @@ mod tests {
         assert_eq!(classify_motion(&a, &turned(10.0), 10.0), Motion::Small);
         assert_eq!(classify_motion(&a, &turned(20.0), 10.0), Motion::Jump);
         assert_eq!(classify_motion(&a, &a.clone().with_resolution(32, 16), 10.0), Motion::Jump);
+    }
+
+    #[test]
+    fn a_still_camera_traces_its_gbuffer_every_k_frames() {
+        use GBufferUse::*;
+        let pattern: Vec<GBufferUse> = (0..7).map(|a| gbuffer_use(a, 3)).collect();
+        assert_eq!(pattern, [Trace, TraceAndHold, Reuse, Reuse, TraceAndHold, Reuse, Reuse]);
+        assert!((0..7).all(|a| gbuffer_use(a, 1) == Trace));
+    }
+
+    /// Through a session: a still camera's frames after the first two reuse the G-buffer (and
+    /// equal frames traced with the holding frame's jitter: `gather::tests`); a camera that
+    /// moves every frame never does, and a frame after a move traces.
+    #[test]
+    fn sessions_reuse_held_gbuffers_only_while_the_camera_stands_still() {
+        use crate::accel::Accel;
+        use crate::load::builtin;
+        use crate::scene::{CameraSettings, Scene};
+        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let camera = scene.camera.clone().with_resolution(24, 16);
+        let settings = SessionSettings {
+            sampler: VplSamplerArg::Sir,
+            max_depth: 8,
+            frame: FrameSettings { vpls: 32, ..FrameSettings::interactive() },
+            seed: 0,
+            fresh_chains: false,
+            reuse_frames: 4,
+            gbuffer_frames: 3,
+        };
+        let mut s = Session::new(scene, accel, camera.clone(), settings);
+        let reused = |s: &mut Session| {
+            let o = s.step();
+            assert!(o.image.iter().all(|p| p.is_finite()));
+            let closest = o.stats.rays.closest;
+            s.recycle(o.image);
+            (o.stats.gbuffer_reused == 1, closest == 0)
+        };
+        let still: Vec<(bool, bool)> = (0..6).map(|_| reused(&mut s)).collect();
+        let want = [false, false, true, true, false, true];
+        assert_eq!(still, want.map(|r| (r, r)), "reused frames, and frames without camera rays");
+        for k in 1..5 {
+            let e = camera.position + Vec3::X * 0.001 * k as f32;
+            s.set_camera(Camera::look_at(e, e + camera.forward, Vec3::Y, camera.fov_y_radians, 24, 16));
+            assert_eq!(reused(&mut s), (false, false), "moving frame {k}");
+        }
+        // (The last moving frame started the mean; the next one, jittered, traces and holds.)
+        assert_eq!(reused(&mut s), (false, false), "the first still frame after a move");
+        assert_eq!(reused(&mut s), (true, true));
     }
 
     #[test]
