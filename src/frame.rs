@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, PlaneLayout, filter_planes};
-use crate::gather::{self, GBuffer, GBufferUse, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
+use crate::gather::{self, CameraRays, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
@@ -86,7 +86,8 @@ pub struct FrameStats {
     pub rays: RayStats,
     /// Energy kept and removed by clamping.
     pub energy: GatherEnergy,
-    /// Frames gathered from a held G-buffer ([`GBufferUse::Reuse`]), no camera rays traced.
+    /// Frames gathered from a held G-buffer ([`gather::GBufferUse::Reuse`]), no camera rays
+    /// traced.
     pub gbuffer_reused: u64,
 }
 
@@ -175,7 +176,7 @@ pub fn render_frame_reusing(
     let (vpls, sstats) = sampler.sample(scene, accel, camera, settings.vpls, seed);
     stats.vpl_time = t.elapsed();
     stats.sampler = sstats;
-    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, spare, GBufferUse::Trace)
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, spare, CameraRays::default())
 }
 
 /// The frame pipeline after VPL sampling (G-buffer, gather, filter).
@@ -188,15 +189,15 @@ pub fn gather_frame(
     seed: u64,
     stats: FrameStats,
 ) -> Frame {
-    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, Spare::default(), GBufferUse::Trace)
+    gather_frame_reusing(scene, accel, camera, vpls, settings, seed, stats, Spare::default(), CameraRays::default())
 }
 
 /// [`gather_frame`] writing the G-buffer, the gathered light, the filter's planes and its
 /// output into the allocations of `spare` (the previous frame's, [`Frame::into_spare`]) where
 /// their sizes match: what a frame loop uses. They are not cleared (each is written before it
-/// is read); allocating and zeroing them afresh cost ~1 ms a frame at 512². `gbuffer` says
+/// is read); allocating and zeroing them afresh cost ~1 ms a frame at 512². `camera_rays` says
 /// whether to trace the G-buffer, and whether to hold it for, or reuse it from, another frame
-/// through the same camera ([`GBufferUse`]; `spare` carries what was held).
+/// through the same camera (`spare` carries what was held), and where jittered rays start.
 pub fn gather_frame_reusing(
     scene: &Scene,
     accel: &Accel,
@@ -206,7 +207,7 @@ pub fn gather_frame_reusing(
     seed: u64,
     mut stats: FrameStats,
     spare: Spare,
-    gbuffer: GBufferUse,
+    camera_rays: CameraRays,
 ) -> Frame {
     let (n, m) = settings.interleave;
     let inter = Interleave::new(&vpls, n, m);
@@ -220,13 +221,14 @@ pub fn gather_frame_reusing(
         camera,
         seed,
         jitter: settings.jitter,
+        sequence: camera_rays.sequence,
         max_specular: settings.max_specular,
         tracing: settings.tracing,
         interleave: &inter,
         g_max: g_bound(scene, settings.clamp),
         min_distance: settings.min_distance,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
-        gbuffer,
+        gbuffer: camera_rays.gbuffer,
     };
     let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes, held, reused } =
         gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);

@@ -17,6 +17,36 @@ use crate::vpl::transfer::{Receiver, receiver_with};
 
 /// Stream tag of G-buffer jitter.
 const TAG_GBUFFER: u64 = 0x4742_5546;
+/// Stream tag of the per-pixel rotations of [`JitterSequence`].
+const TAG_JITTER_ROTATION: u64 = 0x0052_3252_4f54;
+
+/// Sub-pixel positions for the successive jittered G-buffers of a still camera, drawn per pixel
+/// from one low-discrepancy sequence instead of independently: the R2 sequence (Roberts 2018:
+/// point n is n·(1/g, 1/g²) mod 1, g the plastic number) shifted by a random rotation of the
+/// pixel's own (Cranley & Patterson 1976). Each position is uniform in the pixel, as an
+/// independent jitter is, so the running mean converges to the same image; but the first n
+/// positions of a pixel cover it evenly, so the mean of a pixel an edge crosses settles sooner.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct JitterSequence {
+    /// Seed of the per-pixel rotations (a run's seed: they stay fixed while frames accumulate).
+    pub seed: u64,
+    /// Position in the sequence (the jittered G-buffers traced before this one).
+    pub index: u32,
+}
+
+impl JitterSequence {
+    /// The sub-pixel offset of `pixel` (in [0, 1)²). In 32-bit fixed point: exact for every
+    /// index.
+    pub fn offset(&self, pixel: u64) -> Vec2 {
+        // 2³² / g and 2³² / g², rounded.
+        const STEP: [u32; 2] = [3_242_174_889, 2_447_445_414];
+        let h = crate::sampling::rng::hash_words(&[self.seed, TAG_JITTER_ROTATION, pixel]);
+        let rotation = [h as u32, (h >> 32) as u32];
+        let unit =
+            |k: usize| (rotation[k].wrapping_add(STEP[k].wrapping_mul(self.index)) >> 8) as f32 / (1u32 << 24) as f32;
+        vec2(unit(0), unit(1))
+    }
+}
 
 /// One frame's G-buffer.
 #[derive(Clone, Debug, Default)]
@@ -48,6 +78,8 @@ pub(crate) struct PrimaryRays<'a> {
     pub camera: &'a Camera,
     pub seed: u64,
     pub jitter: bool,
+    /// Jittered positions from a sequence instead of the seed's stream.
+    pub sequence: Option<JitterSequence>,
     pub max_specular: u32,
     pub tracing: Tracing,
 }
@@ -87,7 +119,7 @@ impl PrimaryRays<'_> {
 
     /// Traces the rows `y0..` of one band (`band_rows` rows, or fewer at the bottom) into `out`.
     pub(crate) fn band(&self, y0: u32, mut out: BandSlices<'_>) -> RayStats {
-        let Self { scene, accel, camera, seed, jitter, max_specular, tracing } = *self;
+        let Self { scene, accel, camera, seed, jitter, sequence, max_specular, tracing } = *self;
         let w = camera.width;
         let (bw, bh) = self.block();
         let y_end = (y0 + bh).min(camera.height);
@@ -96,7 +128,16 @@ impl PrimaryRays<'_> {
         let setup = |x: u32, y: u32| {
             let pixel = y as u64 * w as u64 + x as u64;
             let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
-            let off: Vec2 = if jitter { s.next_2d() } else { vec2(0.5, 0.5) };
+            // (A sequence's position replaces the stream's, which is drawn all the same: the lens
+            // and bounce samples stay those of the stream.)
+            let off: Vec2 = match (jitter, sequence) {
+                (false, _) => vec2(0.5, 0.5),
+                (true, None) => s.next_2d(),
+                (true, Some(q)) => {
+                    s.next_2d();
+                    q.offset(pixel)
+                }
+            };
             let lens = s.next_2d();
             (s, vec2(x as f32, y as f32) + off, lens)
         };
@@ -208,7 +249,7 @@ pub fn trace(
     reuse: GBuffer,
     stats: &mut RayStats,
 ) -> GBuffer {
-    let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
+    let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence: None, max_specular, tracing };
     let (w, h) = (camera.width, camera.height);
     let mut g = GBuffer::reusing(reuse, w, h, true);
     let band_len = (rays.band_rows() * w) as usize;
@@ -231,4 +272,32 @@ pub fn trace(
         *stats += st;
     }
     g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every position lies in the pixel, and a pixel's first 64 cover it evenly: each of its
+    /// 4×4 cells holds 4 ± 2 of them, for 2000 pixels and two seeds (64 independent positions
+    /// would leave some pixel's cell with 0 or with 8 or more: P(a cell outside 2…6) ≈ 0.2),
+    /// and the pixels' rotations differ.
+    #[test]
+    fn a_pixels_jitter_sequence_covers_it_evenly() {
+        for seed in [0, 77] {
+            let mut firsts = Vec::new();
+            for pixel in 0..2000u64 {
+                let mut cells = [0u32; 16];
+                for index in 0..64 {
+                    let o = JitterSequence { seed, index }.offset(pixel);
+                    assert!((0.0..1.0).contains(&o.x) && (0.0..1.0).contains(&o.y), "{o}");
+                    cells[(o.x * 4.0) as usize + 4 * (o.y * 4.0) as usize] += 1;
+                }
+                assert!(cells.iter().all(|c| (2..=6).contains(c)), "pixel {pixel}: {cells:?}");
+                firsts.push(JitterSequence { seed, index: 0 }.offset(pixel));
+            }
+            let mean = firsts.iter().sum::<Vec2>() / firsts.len() as f32;
+            assert!((mean - Vec2::splat(0.5)).abs().max_element() < 0.03, "rotations {mean}");
+        }
+    }
 }

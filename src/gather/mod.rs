@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use gbuffer::GBuffer;
+pub use gbuffer::{GBuffer, JitterSequence};
 pub use interleave::Interleave;
 pub use shade::{GatherEnergy, gather};
 
@@ -33,6 +33,8 @@ pub struct OnePass<'a> {
     pub seed: u64,
     /// Jitter camera rays inside their pixels.
     pub jitter: bool,
+    /// Take the jittered positions from this sequence (else from the seed's stream).
+    pub sequence: Option<JitterSequence>,
     /// Specular bounces followed by camera rays.
     pub max_specular: u32,
     /// Ray grouping.
@@ -47,6 +49,16 @@ pub struct OnePass<'a> {
     pub planes: Option<PlaneLayout>,
     /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
     pub gbuffer: GBufferUse,
+}
+
+/// How a frame gets its camera rays: whether it traces, holds or reuses its G-buffer, and
+/// where in their pixels jittered rays start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CameraRays {
+    /// Trace, hold or reuse.
+    pub gbuffer: GBufferUse,
+    /// Jittered positions from this sequence (else from the frame seed's stream).
+    pub sequence: Option<JitterSequence>,
 }
 
 /// Where a pass's G-buffer comes from.
@@ -167,6 +179,7 @@ pub fn trace_and_gather(
         camera,
         seed,
         jitter,
+        sequence,
         max_specular,
         tracing,
         interleave,
@@ -175,7 +188,7 @@ pub fn trace_and_gather(
         planes: layout,
         gbuffer: use_gbuffer,
     } = *pass;
-    let rays = PrimaryRays { scene, accel, camera, seed, jitter, max_specular, tracing };
+    let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
     let (w, h) = (camera.width, camera.height);
     let Lent { gbuffer, light, planes, mut held } = lent;
@@ -426,6 +439,7 @@ mod tests {
                     camera: &camera,
                     seed: 5,
                     jitter: true,
+                    sequence: None,
                     max_specular: 4,
                     tracing,
                     interleave: &inter,
@@ -549,6 +563,7 @@ mod tests {
                     camera,
                     seed,
                     jitter: true,
+                    sequence: None,
                     max_specular: 4,
                     tracing: Tracing::PrimaryPackets,
                     interleave: &inter,

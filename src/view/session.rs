@@ -18,9 +18,11 @@
 //! frame and held for the frames in between ([`GBufferUse`]): they differ from it only in their
 //! VPLs, so they skip the camera rays and the receivers (a quarter of a frame's time on the
 //! Cornell box). The anti-aliasing jitter then moves once per held G-buffer instead of every
-//! frame; the running mean converges to the same image (every held G-buffer's jitter is drawn
-//! as before), its pixel-edge noise more slowly per frame. The first frame after a change
-//! samples pixel centres and is not held (the camera may move again).
+//! frame; the running mean converges to the same image (each jittered position is uniform in
+//! its pixel, as before). The jittered positions of a pixel step through a low-discrepancy sequence
+//! ([`JitterSequence`]), so that fewer of them cover the pixel as evenly as independent ones
+//! did every frame. The first frame after a change samples pixel centres and is not held (the
+//! camera may move again).
 
 use std::time::{Duration, Instant};
 
@@ -30,7 +32,7 @@ use rayon::prelude::*;
 use super::reuse;
 use crate::accel::Accel;
 use crate::frame::{self, FrameSettings, FrameStats};
-use crate::gather::GBufferUse;
+use crate::gather::{CameraRays, GBufferUse, JitterSequence};
 use crate::options::VplSamplerArg;
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
@@ -294,10 +296,16 @@ impl Session {
         // change samples pixel centres, so a moving camera does not shimmer at edges.
         let mut settings = self.settings.frame;
         settings.jitter &= self.accumulated > 0;
-        let gbuffer = gbuffer_use(self.accumulated, self.settings.gbuffer_frames);
+        let k = self.settings.gbuffer_frames.max(1);
+        let rays = CameraRays {
+            gbuffer: gbuffer_use(self.accumulated, k),
+            // The jittered G-buffers of a still camera step through one sequence per pixel.
+            sequence: (self.accumulated > 0)
+                .then(|| JitterSequence { seed: self.settings.seed, index: (self.accumulated - 1) / k }),
+        };
         let spare = std::mem::take(&mut self.spare);
         let (scene, accel, camera) = (&self.scene, &self.accel, &self.camera);
-        let mut frame = frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, gbuffer);
+        let mut frame = frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, rays);
         self.frame_index += 1;
 
         let t = Instant::now();
