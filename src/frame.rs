@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
-use crate::filter::{DiscontinuitySettings, PlaneLayout, filter_planes};
+use crate::filter::{DiscontinuitySettings, Masks, PlaneLayout, filter_planes_with};
 use crate::gather::{self, CameraRays, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
@@ -123,6 +123,9 @@ pub struct Spare {
     pub lent: Lent,
     /// The image ([`Frame::image`], the filter's output), when the frame's user hands it back.
     pub image: Vec<Vec3>,
+    /// Which neighbours the discontinuity buffer's windows took ([`Masks`]), recorded for the
+    /// G-buffer held in `lent` and the settings and size they were recorded with.
+    pub masks: Option<(DiscontinuitySettings, (u32, u32), Vec<u16>)>,
 }
 
 /// A rendered frame.
@@ -144,7 +147,11 @@ pub struct Frame {
 impl Frame {
     /// The frame's buffers for the next frame to reuse (the G-buffer with them).
     pub fn into_spare(self) -> Spare {
-        Spare { lent: Lent { gbuffer: self.gbuffer, ..self.scratch.lent }, image: self.image }
+        Spare {
+            lent: Lent { gbuffer: self.gbuffer, ..self.scratch.lent },
+            image: self.image,
+            masks: self.scratch.masks,
+        }
     }
 }
 
@@ -240,25 +247,41 @@ pub fn gather_frame_reusing(
     // (The planes were filled during the pass: their time counts there.)
     // The image: filtered light plus the emission seen directly, written by the filter as it
     // goes.
+    // A held G-buffer's windows take the same neighbours every frame: the first frame that
+    // filters it records which, the next ones take the record (the same image, bit for bit).
+    let size = (camera.width, camera.height);
+    let (recorded, mut record) = match spare.masks {
+        Some((s, wh, m)) => (Some(s) == filter && wh == size, m),
+        None => (false, Vec::new()),
+    };
+    let mut masks = None;
     let (image, planes) = match (filter, pass.planes, planes) {
         (Some(s), Some(layout), Some(planes)) => {
             let (albedo, normal, depth, emitted) = (&gbuf.albedo, &gbuf.normal, &gbuf.depth, &gbuf.emitted);
             let reuse = spare.image;
-            (
-                filter_planes(
-                    &layout,
-                    &planes,
-                    gbuf.height,
-                    &gathered,
-                    albedo,
-                    normal,
-                    depth,
-                    &s,
-                    Some(emitted),
-                    reuse,
-                ),
-                planes,
-            )
+            let use_masks = match () {
+                _ if reused && recorded => Masks::Apply(&record),
+                _ if held.is_held() => Masks::Record(&mut record),
+                _ => Masks::Test,
+            };
+            let kept = !matches!(use_masks, Masks::Test);
+            let image = filter_planes_with(
+                &layout,
+                &planes,
+                gbuf.height,
+                &gathered,
+                albedo,
+                normal,
+                depth,
+                &s,
+                Some(emitted),
+                reuse,
+                use_masks,
+            );
+            if kept {
+                masks = Some((s, size, record));
+            }
+            (image, planes)
         }
         (_, _, planes) => {
             let mut image = spare.image;
@@ -272,7 +295,7 @@ pub fn gather_frame_reusing(
     };
     stats.filter_time = t.elapsed();
     let scratch =
-        Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes, held }, image: Vec::new() };
+        Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes, held }, image: Vec::new(), masks };
     Frame { image, gbuffer: gbuf, vpls, stats, scratch }
 }
 
@@ -345,4 +368,47 @@ pub fn render_progressive(
     let mut rays = total.rays;
     rays += total.sampler.rays;
     (RenderOutput { film, stats: rays, spp: frames, elapsed: start.elapsed() }, total)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gather::{GBufferUse, JitterSequence};
+    use crate::load::builtin;
+    use crate::scene::CameraSettings;
+    use crate::vpl::sir::Sir;
+
+    /// Frames through a held G-buffer, the discontinuity buffer taking its windows' recorded
+    /// neighbours, give the image of a frame traced afresh with the holding frame's seed and
+    /// jitter and the new frame's VPLs, bit for bit; a traced frame in between drops the record.
+    #[test]
+    fn frames_from_a_held_gbuffer_equal_frames_traced_with_its_seed() {
+        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let camera = scene.camera.clone().with_resolution(40, 27);
+        let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::interactive() };
+        let vpls = |seed: u64| Sir::new(4).sample(&scene, &accel, &camera, 64, seed).0;
+        // Frame `index` of a still camera: its jitter is point `index` of the sequence.
+        let frame = |vpls: VplSet, index: u32, spare: Spare, gbuffer: GBufferUse| {
+            let rays = CameraRays { gbuffer, sequence: Some(JitterSequence { seed: 3, index }) };
+            let stats = FrameStats::default();
+            gather_frame_reusing(&scene, &accel, &camera, vpls, &settings, index as u64, stats, spare, rays)
+        };
+        let traced = |v: VplSet, index: u32| frame(v, index, Spare::default(), GBufferUse::Trace).image;
+        let (a, b) = (vpls(1), vpls(2));
+        let hold = frame(a.clone(), 5, Spare::default(), GBufferUse::TraceAndHold);
+        assert!(hold.scratch.masks.is_some(), "the holding frame records its windows");
+        assert!(hold.image == traced(a.clone(), 5));
+        let first = frame(b.clone(), 6, hold.into_spare(), GBufferUse::Reuse);
+        assert_eq!(first.stats.gbuffer_reused, 1);
+        assert!(first.image == traced(b.clone(), 5), "first reuse");
+        let second = frame(a.clone(), 7, first.into_spare(), GBufferUse::Reuse);
+        assert!(second.image == traced(a.clone(), 5), "second reuse");
+        assert!(second.image != traced(a.clone(), 7), "the jitter changes a traced frame");
+        let plain = frame(b.clone(), 8, second.into_spare(), GBufferUse::Trace);
+        assert!(plain.scratch.masks.is_none(), "a traced frame keeps no record");
+        let again = frame(a.clone(), 9, plain.into_spare(), GBufferUse::Reuse);
+        assert_eq!(again.stats.gbuffer_reused, 0);
+        assert!(again.image == traced(a, 9));
+    }
 }

@@ -129,6 +129,44 @@ pub fn filter_planes(
     plus: Option<&[Vec3]>,
     reuse: Vec<Vec3>,
 ) -> Vec<Vec3> {
+    filter_planes_with(layout, planes, height, gathered, albedo, normal, depth, s, plus, reuse, Masks::Test)
+}
+
+/// Which neighbours a window takes: tested, tested and recorded, or as recorded.
+pub enum Masks<'a> {
+    /// Test every neighbour's normal and depth against the centre's.
+    Test,
+    /// Test, and record the outcome into the buffer ([`Masks::len`] entries, resized).
+    Record(&'a mut Vec<u16>),
+    /// Take the outcome recorded for the same G-buffer (normals, depths, albedos) and the same
+    /// settings: no tests, and the normal and depth planes are not read. The same bits.
+    Apply(&'a [u16]),
+}
+
+impl Masks<'_> {
+    /// Entries of a record for a `width` × `height` image and the windows of `s`: per centre row,
+    /// per group of [`L::LANES`] centres, per window offset, the lanes that take it.
+    pub fn len(width: u32, height: u32, s: &DiscontinuitySettings) -> usize {
+        height as usize * (width as usize).div_ceil(L::LANES) * (s.n * s.m) as usize
+    }
+}
+
+/// [`filter_planes`] with the neighbour tests recorded or taken from a record ([`Masks`]). A
+/// still camera's held G-buffer keeps its normals and depths for several frames, and so does
+/// which neighbours each window takes; only the gathered light changes.
+pub fn filter_planes_with(
+    layout: &PlaneLayout,
+    planes: &[f32],
+    height: u32,
+    gathered: &[Vec3],
+    albedo: &[Vec3],
+    normal: &[Vec3],
+    depth: &[f32],
+    s: &DiscontinuitySettings,
+    plus: Option<&[Vec3]>,
+    reuse: Vec<Vec3>,
+    masks: Masks<'_>,
+) -> Vec<Vec3> {
     assert_eq!(planes.len(), layout.row_len() * height as usize, "filter planes of another size");
     assert_eq!(*layout, PlaneLayout::new(layout.width as u32, s), "filter planes laid out for other windows");
     let cos_max = s.max_normal_angle_deg.to_radians().cos();
@@ -136,18 +174,37 @@ pub fn filter_planes(
     let (x_lo, x_hi) = (s.n as usize / 2, (s.n as usize - 1) / 2);
     let (y_lo, y_hi) = (s.m as usize / 2, (s.m as usize - 1) / 2);
     let (pw, pad) = (layout.pw, layout.pad);
+    // The record's layout (see `Masks::len`).
+    let (groups, window) = (w.div_ceil(L::LANES), (s.n * s.m) as usize);
+    let n_masks = Masks::len(w as u32, height, s);
+    let (record, apply): (Option<&mut [u16]>, Option<&[u16]>) = match masks {
+        Masks::Test => (None, None),
+        Masks::Record(m) => {
+            m.resize(n_masks, 0);
+            (Some(&mut m[..]), None)
+        }
+        Masks::Apply(m) => {
+            assert_eq!(m.len(), n_masks, "filter masks of another size");
+            (None, Some(m))
+        }
+    };
+    // Each pair of centre rows writes its own rows' records.
+    let mut record_pairs: Vec<Option<&mut [u16]>> = match record {
+        Some(m) => m.chunks_mut(2 * groups * window).map(Some).collect(),
+        None => (0..h.div_ceil(2)).map(|_| None).collect(),
+    };
     // Every pixel is written below; zeroed in parallel, not serially on the calling thread.
     let mut out = if reuse.len() == w * h { reuse } else { crate::gather::fresh(w * h, Vec3::ZERO) };
     let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
     // Two centre rows at a time: their windows share all rows but one, so each neighbour
     // vector is loaded once for both.
-    out.par_chunks_mut(2 * w).enumerate().for_each(|(pair, rows)| {
+    out.par_chunks_mut(2 * w).zip(record_pairs.par_iter_mut()).enumerate().for_each(|(pair, (rows, record))| {
         // The pair's rows (the last pair of an odd height has one).
         let n_rows = rows.len() / w;
         let ys = [2 * pair, 2 * pair + 1];
-        let window = |y: usize| (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
-        let (first, last) = (window(ys[0]).0, window(ys[n_rows - 1]).1);
-        for xc in (0..w).step_by(L::LANES) {
+        let window_rows = |y: usize| (y.saturating_sub(y_lo), (y + y_hi).min(h - 1));
+        let (first, last) = (window_rows(ys[0]).0, window_rows(ys[n_rows - 1]).1);
+        for (g, xc) in (0..w).step_by(L::LANES).enumerate() {
             // L::LANES pixels of plane k of the row at `base`, from padded position `xs`.
             let at = |base: usize, k: usize, xs: usize| L::load(&planes[base + k * pw + xs..]);
             let c = pad + xc;
@@ -156,10 +213,17 @@ pub fn filter_planes(
                     // No such row: an empty window.
                     return Centre::new([L::splat(0.0); 3], L::splat(0.0), L::splat(0.0), (1, 0));
                 }
+                if apply.is_some() {
+                    // (Normals and depths are not read: the record has the tests' outcome.)
+                    return Centre::new([L::splat(0.0); 3], L::splat(0.0), L::splat(0.0), window_rows(y));
+                }
                 let base = y * PLANES * pw;
                 let (nx, ny, nz, d0) = (at(base, 0, c), at(base, 1, c), at(base, 2, c), at(base, 3, c));
-                Centre::new([nx, ny, nz], d0, rel_depth * d0, window(y))
+                Centre::new([nx, ny, nz], d0, rel_depth * d0, window_rows(y))
             });
+            // The record of centre row k (0 or 1 of the pair) of this group, offset `o`.
+            let slot = |k: usize, o: usize| (k * groups + g) * window + o;
+            let applied = apply.map(|m| &m[(2 * pair * groups) * window..]);
             for yy in first..=last {
                 let base = yy * PLANES * pw;
                 let takers: u32 =
@@ -171,11 +235,28 @@ pub fn filter_planes(
                 let plane: [&[f32]; PLANES] = std::array::from_fn(|k| &planes[base + k * pw + c - x_lo..][..span]);
                 for dx in 0..=x_lo + x_hi {
                     let at = |k: usize| L::load(&plane[k][dx..]);
-                    let n = [at(0), at(1), at(2)];
-                    let (d, v) = (at(3), [at(4), at(5), at(6)]);
-                    for (k, a) in acc.iter_mut().enumerate() {
-                        if takers >> k & 1 != 0 {
-                            a.add(&n, d, &v, cos, one);
+                    let v = [at(4), at(5), at(6)];
+                    // Window offset of (yy, dx) for centre row k: (yy − y + y_lo)·n + dx.
+                    let offset = |k: usize| (yy + y_lo - ys[k]) * (s.n as usize) + dx;
+                    match applied {
+                        Some(m) => {
+                            for (k, a) in acc.iter_mut().enumerate() {
+                                if takers >> k & 1 != 0 {
+                                    a.add_kept(L::mask_from_bits(m[slot(k, offset(k))] as u32), &v, one);
+                                }
+                            }
+                        }
+                        None => {
+                            let (n, d) = ([at(0), at(1), at(2)], at(3));
+                            for (k, a) in acc.iter_mut().enumerate() {
+                                if takers >> k & 1 != 0 {
+                                    let keep = a.keep(&n, d, cos);
+                                    if let Some(r) = record.as_deref_mut() {
+                                        r[slot(k, offset(k))] = keep.bitmask() as u16;
+                                    }
+                                    a.add_kept(keep, &v, one);
+                                }
+                            }
                         }
                     }
                 }
@@ -220,12 +301,17 @@ impl Centre {
         Centre { normal, depth, tol, rows, sum: [zero; 3], count: zero }
     }
 
-    /// Adds the neighbours (normal `n`, depth `d`, ratio `v`) that pass the centres' tests.
+    /// The lanes whose neighbour (normal `n`, depth `d`) passes the centre's tests.
     #[inline(always)]
-    fn add(&mut self, n: &[L; 3], d: L, v: &[L; 3], cos: L, one: L) {
-        let zero = L::splat(0.0);
+    fn keep(&self, n: &[L; 3], d: L, cos: L) -> L {
         let dot = n[0] * self.normal[0] + n[1] * self.normal[1] + n[2] * self.normal[2];
-        let keep = dot.ge(cos).and((d - self.depth).abs().le(self.tol));
+        dot.ge(cos).and((d - self.depth).abs().le(self.tol))
+    }
+
+    /// Adds the neighbours' ratios `v` in the lanes of `keep`.
+    #[inline(always)]
+    fn add_kept(&mut self, keep: L, v: &[L; 3], one: L) {
+        let zero = L::splat(0.0);
         for (s, &v) in self.sum.iter_mut().zip(v) {
             *s += keep.select(v, zero);
         }
@@ -312,6 +398,63 @@ mod tests {
             let slow = filter_one_centre_at_a_time(w, h, &gathered, &albedo, &normal, &depth, &s);
             for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
                 // Each lane adds its neighbours in the reference's order: the same bits.
+                assert_eq!(a, b, "{w}x{h} {n}x{m} pixel {i}");
+            }
+        }
+    }
+
+    /// A record of which neighbours each window took ([`Masks`]), made while filtering one light,
+    /// filters another light over the same G-buffer to the straightforward filter's values, bit
+    /// for bit, without reading the normal and depth planes (they are overwritten with garbage
+    /// here); recording does not change the image. Random surfaces with edges and holes, and
+    /// every window size of the test above.
+    #[test]
+    fn recorded_neighbour_masks_filter_another_light_as_the_tests_would() {
+        let mut rng = crate::sampling::Pcg32::new(11);
+        for (w, h, n, m) in [(37u32, 11u32, 8u32, 8u32), (8, 8, 4, 4), (5, 3, 8, 8), (64, 9, 3, 5), (17, 2, 1, 1)] {
+            let len = (w * h) as usize;
+            let mut u = || rng.next_f32();
+            let mut light = || -> Vec<Vec3> { (0..len).map(|_| Vec3::new(u(), u(), u()) * 4.0).collect() };
+            let (first, second) = (light(), light());
+            let mut u = || rng.next_f32();
+            let albedo: Vec<Vec3> = (0..len)
+                .map(|_| if u() < 0.1 { Vec3::new(0.5, 0.0, 0.5) } else { Vec3::new(0.2 + u(), 0.3, 0.9) })
+                .collect();
+            let normal: Vec<Vec3> = (0..len)
+                .map(|i| match (i % w as usize) / 6 % 3 {
+                    0 => Vec3::Z,
+                    1 => Vec3::new(0.0, 0.6, 0.8),
+                    _ => Vec3::new(0.05 * u(), 0.0, 1.0).normalize(),
+                })
+                .collect();
+            let depth: Vec<f32> = (0..len)
+                .map(|i| if u() < 0.05 { 0.0 } else { 1.0 + ((i % w as usize) / 6 % 3) as f32 + 0.04 * u() })
+                .collect();
+            let s = DiscontinuitySettings::new(n, m);
+            let layout = PlaneLayout::new(w, &s);
+            let planes_of = |gathered: &[Vec3]| {
+                let mut planes = vec![0.0f32; layout.row_len() * h as usize];
+                for (y, row) in planes.chunks_mut(layout.row_len()).enumerate() {
+                    let r = y * w as usize..(y + 1) * w as usize;
+                    layout.fill_row(row, &gathered[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+                }
+                planes
+            };
+            let run = |gathered: &[Vec3], planes: &[f32], masks: Masks<'_>| {
+                filter_planes_with(&layout, planes, h, gathered, &albedo, &normal, &depth, &s, None, Vec::new(), masks)
+            };
+            let mut record = Vec::new();
+            let recorded = run(&first, &planes_of(&first), Masks::Record(&mut record));
+            assert_eq!(record.len(), Masks::len(w, h, &s));
+            let slow = |g: &[Vec3]| filter_one_centre_at_a_time(w, h, g, &albedo, &normal, &depth, &s);
+            assert_eq!(recorded, slow(&first), "{w}x{h} {n}x{m}: recording changed the image");
+            // The second light's planes, with the normal and depth planes spoiled.
+            let mut planes = planes_of(&second);
+            for row in planes.chunks_mut(layout.row_len()) {
+                row[..4 * layout.pw].fill(f32::NAN);
+            }
+            let applied = run(&second, &planes, Masks::Apply(&record));
+            for (i, (a, b)) in applied.iter().zip(&slow(&second)).enumerate() {
                 assert_eq!(a, b, "{w}x{h} {n}x{m} pixel {i}");
             }
         }

@@ -2,4 +2,6 @@
 
 pub mod discontinuity;
 
-pub use discontinuity::{DiscontinuitySettings, PlaneLayout, filter as discontinuity_filter, filter_planes};
+pub use discontinuity::{
+    DiscontinuitySettings, Masks, PlaneLayout, filter as discontinuity_filter, filter_planes, filter_planes_with,
+};
