@@ -7,7 +7,7 @@
 use std::sync::OnceLock;
 
 use glam::{Vec2, Vec3, vec2};
-use mirage::accel::{Accel, SHADOW_T_MAX, offset_origin, rays};
+use mirage::accel::{Accel, PacketView, SHADOW_T_MAX, offset_origin, rays};
 use mirage::load::builtin;
 use mirage::sampling::Pcg32;
 use mirage::scene::{CameraSettings, NO_LIGHT, Scene, SurfacePoint};
@@ -430,5 +430,74 @@ fn gather_image_is_the_same_for_every_ray_grouping() {
             // Every grouping sums a pixel's contributions in its subset's order: the same bits.
             assert!(single.image == packed.image, "{} {tracing:?}: images differ", case.name);
         }
+    }
+}
+
+/// Camera packets traced through the frustum of their pixel block's raster rectangle
+/// (`Accel::intersect_packet_in`, what the G-buffer does) get the single rays' hits: from the
+/// scene's camera and from random eyes inside the scene looking anywhere, with fields of view
+/// from narrow to 120°, blocks at the image's edges, and sub-pixel positions at 0, ½, just
+/// below 1 and random.
+#[test]
+fn camera_block_frustums_match_single_rays() {
+    for case in cases() {
+        let mut rng = Pcg32::new(5);
+        let mut cameras = vec![case.scene.camera.clone().with_resolution(97, 61)];
+        for _ in 0..6 {
+            let eye = random_point_in_bounds(&case.scene, &mut rng);
+            let fov = 0.2 + 1.9 * rng.next_f32();
+            let (w, h) = (20 + (rng.next_f32() * 120.0) as u32, 20 + (rng.next_f32() * 90.0) as u32);
+            cameras.push(mirage::scene::Camera::look_at(eye, eye + random_unit(&mut rng), Vec3::Y, fov, w, h));
+        }
+        let mut errors = Vec::new();
+        let mut count = 0;
+        for (k, cam) in cameras.iter().enumerate() {
+            for y0 in (0..cam.height).step_by(2) {
+                for x0 in (0..cam.width).step_by(4) {
+                    let mut raster = [Vec2::ZERO; 8];
+                    let mut n = 0;
+                    for i in 0..8u32 {
+                        let (x, y) = (x0 + i % 4, y0 + i / 4);
+                        if x < cam.width && y < cam.height {
+                            let jitter = match (x + y + k as u32) % 4 {
+                                0 => Vec2::ZERO,
+                                1 => Vec2::splat(0.5),
+                                2 => Vec2::splat(1.0 - f32::EPSILON / 2.0),
+                                _ => vec2(rng.next_f32(), rng.next_f32()),
+                            };
+                            raster[n] = vec2(x as f32, y as f32) + jitter;
+                            n += 1;
+                        }
+                    }
+                    let rays = cam.generate_rays8(&raster, &[Vec2::splat(0.5); 8], n);
+                    let packet = RayPacket::<F8>::from_fn(|i| {
+                        (i < n).then(|| LaneRay::new(rays[i].origin, rays[i].dir, f32::INFINITY))
+                    });
+                    let slopes = cam
+                        .raster_slopes((x0 as f32, (x0 + 4) as f32), (y0 as f32, (y0 + 2) as f32))
+                        .expect("a pinhole camera");
+                    let view = PacketView { apex: cam.position, basis: [cam.right, cam.up, cam.forward], slopes };
+                    let hits = case.accel.intersect_packet_in(&packet, Some(&view));
+                    for (i, ray) in rays.iter().enumerate().take(n) {
+                        let single = case.accel.intersect(ray.origin, ray.dir, f32::INFINITY);
+                        let lane = hits.lane(i);
+                        if single.map(|s| (s.tri, s.t)) != lane.map(|l| (l.tri, l.t)) {
+                            errors.push(format!(
+                                "{} camera {k} pixel block ({x0}, {y0}) lane {i}: {single:?} vs {lane:?}",
+                                case.name
+                            ));
+                        }
+                        count += 1;
+                    }
+                }
+            }
+        }
+        assert!(count >= 20_000, "{count} rays");
+        assert!(
+            errors.is_empty(),
+            "{} of {count} rays disagree; first: {:#?}",
+            errors.len(),
+            &errors[..errors.len().min(5)]
+        );
     }
 }

@@ -54,7 +54,7 @@ use obvhs::triangle::Triangle;
 
 use crate::scene::{Mesh, SurfacePoint};
 
-pub use packet::PacketHits;
+pub use packet::{PacketHits, PacketView};
 pub use triangle::{ShearedRay, TriHit, intersect as intersect_triangle};
 pub use wide::WideBvh;
 

@@ -140,11 +140,17 @@ impl PlaneFrustum {
             return None;
         }
         let (a, b) = (du / dc, dv / dc);
-        let (a_lo, a_hi, b_lo, b_hi) =
-            (a.min_lanes(active), a.max_lanes(active), b.min_lanes(active), b.max_lanes(active));
+        let slopes = [a.min_lanes(active), a.max_lanes(active), b.min_lanes(active), b.max_lanes(active)];
+        Self::from_slopes(apex, spread, [u, v, c], slopes)
+    }
+
+    /// The frustum of the directions `c + a·u + b·v` with slopes `a` in `[a_lo, a_hi]` and `b`
+    /// in `[b_lo, b_hi]` (`[u, v, c]` orthonormal up to rounding), from apexes within `spread` of
+    /// `apex`; None when it is too wide (see [`MAX_SLOPE_SPAN`]).
+    fn from_slopes(apex: Vec3, spread: f32, [u, v, c]: [Vec3; 3], [a_lo, a_hi, b_lo, b_hi]: [f32; 4]) -> Option<Self> {
         // A wide cone culls little and the traversal would visit most of the tree: beyond
         // ~11° (slopes spanning more than 0.2) the lanes are traced one by one instead.
-        if (a_hi - a_lo).max(b_hi - b_lo) > MAX_SLOPE_SPAN {
+        if !((a_hi - a_lo).max(b_hi - b_lo) <= MAX_SLOPE_SPAN) {
             return None;
         }
         // Widen the slopes for the rounding of their computation (1e-4 rad: at the far side of
@@ -193,6 +199,20 @@ impl Cull for PlaneFrustum {
     fn lane_tests(&self) -> bool {
         self.lane_tests
     }
+}
+
+/// What a packet's rays are known to share: one origin `apex` (world space), and directions
+/// `c + a·u + b·v` (`basis` = `[u, v, c]`, orthonormal) with slopes within `slopes` = `[a_lo,
+/// a_hi, b_lo, b_hi]` (before rounding, which the frustum allows for). A pinhole camera's rays
+/// through a block of pixels ([`crate::scene::Camera::raster_slopes`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PacketView {
+    /// The rays' common origin.
+    pub apex: Vec3,
+    /// `[u, v, c]`.
+    pub basis: [Vec3; 3],
+    /// `[a_lo, a_hi, b_lo, b_hi]`.
+    pub slopes: [f32; 4],
 }
 
 /// A packet in the canonical frame with the per-lane constants of the box and triangle tests.
@@ -298,8 +318,23 @@ const SPILL_AT: usize = 32;
 impl Accel {
     /// Closest hits of the rays of `packet` (world space, as [`Accel::intersect`] per lane).
     pub fn intersect_packet<F: Lanes>(&self, packet: &RayPacket<F>) -> PacketHits<F> {
+        self.intersect_packet_in(packet, None)
+    }
+
+    /// [`Accel::intersect_packet`] for rays known to lie in `view` (camera rays of a pixel
+    /// block): its frustum is built from the view's bounds instead of from the lanes' directions
+    /// (which took reductions across lanes, a normalisation and divisions per packet). The same
+    /// hits: the frustum only culls, conservatively.
+    pub fn intersect_packet_in<F: Lanes>(&self, packet: &RayPacket<F>, view: Option<&PacketView>) -> PacketHits<F> {
         let p = CanonicalPacket::new(self, packet);
-        let (hit, t, tri_bits, b1, b2) = match p.forward_frustum() {
+        let frustum = match view {
+            Some(v) if p.active != 0 => {
+                let f = self.frame;
+                PlaneFrustum::from_slopes((v.apex - f.center) * f.scale, 0.0, v.basis, v.slopes)
+            }
+            _ => p.forward_frustum(),
+        };
+        let (hit, t, tri_bits, b1, b2) = match frustum {
             None => closest_lanes(&self.wide, &p),
             Some(f) => closest_frustum(&self.wide, &p, &f, &mut SpillStack::<_, SPILL_AT>::new((0, 0.0, 0))),
         };

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::Tracing;
 use super::shade::Prepared;
 use crate::accel::rays::block_size;
-use crate::accel::{Accel, Hit};
+use crate::accel::{Accel, Hit, PacketView};
 use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::simd::{F8, LaneRay, RayPacket};
@@ -170,7 +170,15 @@ impl PrimaryRays<'_> {
                 let packet = RayPacket::<F8>::from_fn(|i| {
                     (i < n).then(|| LaneRay::new(rays[i].origin, rays[i].dir, f32::INFINITY))
                 });
-                accel.intersect_packet(&packet).write_lanes(&mut hits[..n]);
+                // The block's rays leave the eye through its raster rectangle: their frustum
+                // from the camera, not from the lanes.
+                let (x1, y1) = ((x0 + bw) as f32, (y0 + bh) as f32);
+                let view = camera.raster_slopes((x0 as f32, x1), (y0 as f32, y1)).map(|slopes| PacketView {
+                    apex: camera.position,
+                    basis: [camera.right, camera.up, camera.forward],
+                    slopes,
+                });
+                accel.intersect_packet_in(&packet, view.as_ref()).write_lanes(&mut hits[..n]);
             }
             for k in 0..n {
                 // (Moving the sampler out, rather than borrowing it in place, measured 0.5 ms

@@ -172,6 +172,19 @@ impl Camera {
         rays
     }
 
+    /// The slopes (x / forward along `right`, y / forward along `up`: low x, high x, low y,
+    /// high y) bounding the rays [`Camera::generate_rays8`] gives for raster positions in
+    /// `[x0, x1) × [y0, y1)`, before rounding; None for a thin-lens camera (its rays leave
+    /// different points of the lens).
+    pub fn raster_slopes(&self, (x0, x1): (f32, f32), (y0, y1): (f32, f32)) -> Option<[f32; 4]> {
+        if self.lens_radius > 0.0 {
+            return None;
+        }
+        let x = |r: f32| (2.0 * r / self.width as f32 - 1.0) * self.tan_half_x;
+        let y = |r: f32| (1.0 - 2.0 * r / self.height as f32) * self.tan_half_y;
+        Some([x(x0), x(x1), y(y1), y(y0)])
+    }
+
     /// The raster position a ray leaving the lens at `p_lens` along `dir` maps to, or `None`
     /// when it leaves the image.
     pub fn raster_of(&self, p_lens: Vec3, dir: Vec3) -> Option<Vec2> {
