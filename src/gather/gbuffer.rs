@@ -48,6 +48,35 @@ impl JitterSequence {
     }
 }
 
+/// A pixel's G-buffer stream ([`IndependentSampler::for_stream`] of the seed, the G-buffer tag
+/// and the pixel), or what is needed to make it when first asked.
+enum PixelStream {
+    Made(IndependentSampler),
+    /// Not made yet; `skip` numbers are drawn from it first.
+    Deferred {
+        pixel: u64,
+        skip: u32,
+    },
+}
+
+impl PixelStream {
+    /// The stream's next number.
+    #[inline]
+    fn next_1d(&mut self, seed: u64) -> f32 {
+        if let PixelStream::Deferred { pixel, skip } = *self {
+            let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
+            for _ in 0..skip {
+                s.next_1d();
+            }
+            *self = PixelStream::Made(s);
+        }
+        match self {
+            PixelStream::Made(s) => s.next_1d(),
+            PixelStream::Deferred { .. } => unreachable!("made above"),
+        }
+    }
+}
+
 /// One frame's G-buffer.
 #[derive(Clone, Debug, Default)]
 pub struct GBuffer {
@@ -123,30 +152,43 @@ impl PrimaryRays<'_> {
         let w = camera.width;
         let (bw, bh) = self.block();
         let y_end = (y0 + bh).min(camera.height);
-        // The raster position and lens sample of a pixel's camera ray, and the sampler that
-        // continues its specular bounces.
+        // The raster position and lens sample of a pixel's camera ray, and the stream that
+        // continues its specular bounces. A pinhole camera's ray whose position does not come
+        // from the stream needs none of its numbers: the stream is then made only if a bounce
+        // asks for one (most pixels never do), skipping the numbers the set-up would have drawn.
+        let deferred = camera.lens_radius <= 0.0 && (!jitter || sequence.is_some());
         let setup = |x: u32, y: u32| {
             let pixel = y as u64 * w as u64 + x as u64;
+            let off: Vec2 = match (jitter, sequence) {
+                (false, _) => vec2(0.5, 0.5),
+                (true, Some(q)) => q.offset(pixel),
+                (true, None) => Vec2::ZERO,
+            };
+            if deferred {
+                // (Offset draws, made and discarded for a sequence, and the lens sample.)
+                let skip = if jitter { 4 } else { 2 };
+                return (PixelStream::Deferred { pixel, skip }, vec2(x as f32, y as f32) + off, Vec2::splat(0.5));
+            }
             let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
             // (A sequence's position replaces the stream's, which is drawn all the same: the lens
             // and bounce samples stay those of the stream.)
-            let off: Vec2 = match (jitter, sequence) {
-                (false, _) => vec2(0.5, 0.5),
+            let off = match (jitter, sequence) {
                 (true, None) => s.next_2d(),
-                (true, Some(q)) => {
+                (true, Some(_)) => {
                     s.next_2d();
-                    q.offset(pixel)
+                    off
                 }
+                (false, _) => off,
             };
             let lens = s.next_2d();
-            (s, vec2(x as f32, y as f32) + off, lens)
+            (PixelStream::Made(s), vec2(x as f32, y as f32) + off, lens)
         };
         let mut st = RayStats::default();
         let mut primary = 0;
         // One block of camera rays: pixel, sampler, ray, first hit. Plain arrays and one call
         // site of `receiver_from_hit`: passed through closures, these values went through
         // memory and every pixel stalled on reading them back.
-        let mut samplers: [Option<IndependentSampler>; 8] = Default::default();
+        let mut samplers: [Option<PixelStream>; 8] = Default::default();
         let (mut raster, mut lens) = ([Vec2::ZERO; 8], [Vec2::ZERO; 8]);
         let mut pixels = [(0u32, 0u32); 8];
         let mut hits: [Option<Hit>; 8] = [None; 8];
@@ -186,7 +228,7 @@ impl PrimaryRays<'_> {
                 let Some(mut s) = samplers[k].take() else { continue };
                 let (x, y) = pixels[k];
                 let i = ((y - y0) * w + x) as usize;
-                let u = &mut || s.next_1d();
+                let u = &mut || s.next_1d(seed);
                 receiver_with(scene, accel, rays[k], hits[k], u, max_specular, &mut st, |r, e| {
                     out.albedo[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.albedo() * r.beta);
                     out.normal[i] = r.map_or(Vec3::ZERO, |r| r.bsdf.frame.n);
@@ -285,6 +327,21 @@ pub fn trace(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A deferred stream gives the numbers the made one gives after the set-up's draws.
+    #[test]
+    fn deferred_streams_continue_where_the_setup_left_off() {
+        for (pixel, skip) in [(0u64, 2u32), (7, 4), (123_456, 2)] {
+            let mut made = IndependentSampler::for_stream(9, TAG_GBUFFER, pixel);
+            for _ in 0..skip {
+                made.next_1d();
+            }
+            let mut deferred = PixelStream::Deferred { pixel, skip };
+            for _ in 0..5 {
+                assert_eq!(deferred.next_1d(9).to_bits(), made.next_1d().to_bits());
+            }
+        }
+    }
 
     /// Every position lies in the pixel, and a pixel's first 64 cover it evenly: each of its
     /// 4×4 cells holds 4 ± 2 of them, for 2000 pixels and two seeds (64 independent positions
