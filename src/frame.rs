@@ -259,10 +259,12 @@ pub fn gather_frame_reusing(
         (Some(s), Some(layout), Some(planes)) => {
             let (albedo, normal, depth, emitted) = (&gbuf.albedo, &gbuf.normal, &gbuf.depth, &gbuf.emitted);
             let reuse = spare.image;
-            let use_masks = match () {
-                _ if reused && recorded => Masks::Apply(&record),
-                _ if held.is_held() => Masks::Record(&mut record),
-                _ => Masks::Test,
+            let use_masks = if reused && recorded {
+                Masks::Apply(&record)
+            } else if held.is_held() {
+                Masks::Record(&mut record)
+            } else {
+                Masks::Test
             };
             let kept = !matches!(use_masks, Masks::Test);
             let image = filter_planes_with(

@@ -214,7 +214,6 @@ pub fn trace_and_gather(
             held.prepared = fresh(n, None);
         }
         held.kept.resize_with(n_bands, Vec::new);
-        held.kept.truncate(n_bands);
     }
     let mut g = GBuffer::reusing(gbuffer, w, h, false);
     // Fresh buffers are zeroed in parallel: a serial zeroing of the planes' 7.6 MB at 512² held
