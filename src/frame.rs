@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
-use crate::filter::{DiscontinuitySettings, Masks, PlaneLayout, filter_planes_with};
+use crate::filter::{DiscontinuitySettings, Masks, PlaneLayout, filter_planes};
 use crate::gather::{self, CameraRays, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
 use crate::scene::{Camera, Scene};
@@ -267,7 +267,7 @@ pub fn gather_frame_reusing(
                 Masks::Test
             };
             let kept = !matches!(use_masks, Masks::Test);
-            let image = filter_planes_with(
+            let image = filter_planes(
                 &layout,
                 &planes,
                 gbuf.height,

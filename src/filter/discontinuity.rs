@@ -104,32 +104,7 @@ pub fn filter(
         let r = y * w..(y + 1) * w;
         layout.fill_row(row, &gathered[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
     });
-    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s, None, Vec::new())
-}
-
-/// [`filter`] from planes already filled ([`PlaneLayout::fill_row`] for every row; the frame
-/// pipeline fills them while each band of rows is in cache), plus `plus` per pixel when given
-/// (the frame adds the emission seen directly as it writes each pixel, instead of in another
-/// pass over 9 MB at 512²), into the allocation of `reuse` when it has the image's size (every
-/// pixel is written, so it needs no clearing).
-///
-/// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
-/// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
-/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form);
-/// two rows of centres share those loads.
-pub fn filter_planes(
-    layout: &PlaneLayout,
-    planes: &[f32],
-    height: u32,
-    gathered: &[Vec3],
-    albedo: &[Vec3],
-    normal: &[Vec3],
-    depth: &[f32],
-    s: &DiscontinuitySettings,
-    plus: Option<&[Vec3]>,
-    reuse: Vec<Vec3>,
-) -> Vec<Vec3> {
-    filter_planes_with(layout, planes, height, gathered, albedo, normal, depth, s, plus, reuse, Masks::Test)
+    filter_planes(&layout, &planes, height, gathered, albedo, normal, depth, s, None, Vec::new(), Masks::Test)
 }
 
 /// Which neighbours a window takes: tested, tested and recorded, or as recorded.
@@ -151,10 +126,21 @@ impl Masks<'_> {
     }
 }
 
-/// [`filter_planes`] with the neighbour tests recorded or taken from a record ([`Masks`]). A
-/// still camera's held G-buffer keeps its normals and depths for several frames, and so does
-/// which neighbours each window takes; only the gathered light changes.
-pub fn filter_planes_with(
+/// [`filter`] from planes already filled ([`PlaneLayout::fill_row`] for every row; the frame
+/// pipeline fills them while each band of rows is in cache), plus `plus` per pixel when given
+/// (the frame adds the emission seen directly as it writes each pixel, instead of in another
+/// pass over 9 MB at 512²), into the allocation of `reuse` when it has the image's size (every
+/// pixel is written, so it needs no clearing).
+///
+/// Vectorised across window centres: sixteen neighbouring pixels of a row are filtered at once,
+/// and each window offset costs one 16-wide load per plane and no horizontal sums (measured in
+/// benches/results/2026-12-01-view.md against the earlier one-window-row-per-register form);
+/// two rows of centres share those loads.
+///
+/// `masks` says whether each window's neighbours are tested, tested and recorded, or taken from
+/// a record ([`Masks`]): a still camera's held G-buffer keeps its normals and depths for several
+/// frames, and so does which neighbours each window takes; only the gathered light changes.
+pub fn filter_planes(
     layout: &PlaneLayout,
     planes: &[f32],
     height: u32,
@@ -441,7 +427,7 @@ mod tests {
                 planes
             };
             let run = |gathered: &[Vec3], planes: &[f32], masks: Masks<'_>| {
-                filter_planes_with(&layout, planes, h, gathered, &albedo, &normal, &depth, &s, None, Vec::new(), masks)
+                filter_planes(&layout, planes, h, gathered, &albedo, &normal, &depth, &s, None, Vec::new(), masks)
             };
             let mut record = Vec::new();
             let recorded = run(&first, &planes_of(&first), Masks::Record(&mut record));

@@ -2,6 +2,4 @@
 
 pub mod discontinuity;
 
-pub use discontinuity::{
-    DiscontinuitySettings, Masks, PlaneLayout, filter as discontinuity_filter, filter_planes, filter_planes_with,
-};
+pub use discontinuity::{DiscontinuitySettings, Masks, PlaneLayout, filter as discontinuity_filter, filter_planes};

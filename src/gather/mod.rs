@@ -363,7 +363,7 @@ pub enum Tracing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::{DiscontinuitySettings, discontinuity_filter, filter_planes};
+    use crate::filter::{DiscontinuitySettings, Masks, discontinuity_filter, filter_planes};
     use crate::load::builtin;
     use crate::scene::CameraSettings;
     use crate::vpl::VplSampler;
@@ -494,6 +494,7 @@ mod tests {
                         &filter,
                         None,
                         reuse_filtered,
+                        Masks::Test,
                     );
                     let whole =
                         discontinuity_filter(camera.width, h, &light, &gbuf.albedo, &gbuf.normal, &gbuf.depth, &filter);
@@ -511,6 +512,7 @@ mod tests {
                         &filter,
                         Some(&gb.emitted),
                         Vec::new(),
+                        Masks::Test,
                     );
                     let after: Vec<Vec3> = banded.iter().zip(&gb.emitted).map(|(f, e)| *f + *e).collect();
                     assert!(plus == after, "{case}: emission added in the filter differs");
@@ -584,7 +586,7 @@ mod tests {
                     let gb = &g.gbuffer;
                     let planes = g.planes.as_ref().unwrap();
                     let (a, n, d) = (&gb.albedo, &gb.normal, &gb.depth);
-                    filter_planes(&layout, planes, gb.height, &g.light, a, n, d, &filter, None, Vec::new())
+                    filter_planes(&layout, planes, gb.height, &g.light, a, n, d, &filter, None, Vec::new(), Masks::Test)
                 };
                 assert!(filtered(a) == filtered(b), "{name} {case}: filtered image");
                 assert_eq!((a.energy.kept, a.energy.removed), (b.energy.kept, b.energy.removed), "{name} {case}");
