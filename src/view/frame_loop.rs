@@ -142,6 +142,8 @@ pub struct FrameReport {
     pub flicker: Option<f64>,
     /// relMSE of the running mean against the reference, at checkpoints.
     pub rel_mse: Option<f64>,
+    /// Gathered from a held G-buffer (no camera rays).
+    pub gbuffer_held: bool,
 }
 
 /// The shared loop body and its state.
@@ -268,6 +270,7 @@ impl FrameLoop {
             motion: outcome.motion,
             flicker,
             rel_mse,
+            gbuffer_held: s.gbuffer_reused > 0,
         })
     }
 

@@ -36,6 +36,8 @@ pub struct HudData<'a> {
     pub acceptance: Option<f64>,
     /// Frames in the running mean.
     pub accumulated: u32,
+    /// The last frame gathered from a held G-buffer (still camera: no camera rays).
+    pub gbuffer_held: bool,
     /// Render resolution.
     pub render_size: (u32, u32),
     /// A transient message (last key's effect, screenshot path).
@@ -73,11 +75,12 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
             if d.settings.filter.is_some() { "ON" } else { "OFF" }
         ),
         format!(
-            "{:.2} MRAYS/S  ACCEPT {}  {}  FRAMES {}",
+            "{:.2} MRAYS/S  ACCEPT {}  {}  FRAMES {}{}",
             d.rays_per_second / 1e6,
             d.acceptance.map_or("-".to_string(), |a| format!("{:.1}%", 100.0 * a)),
             chains_label(d.fresh_chains, d.reuse_frames).to_uppercase(),
-            d.accumulated
+            d.accumulated,
+            if d.gbuffer_held { "  G-BUFFER HELD" } else { "" }
         ),
     ];
     if let Some(s) = d.status {
@@ -128,6 +131,7 @@ mod tests {
             rays_per_second: 3.2e6,
             acceptance: Some(0.42),
             accumulated: 7,
+            gbuffer_held: true,
             render_size: (512, 512),
             status: Some("clamp off"),
         };
@@ -142,6 +146,7 @@ mod tests {
             "3.20 MRAYS/S",
             "42.0%",
             "MTMH",
+            "G-BUFFER HELD",
         ] {
             assert!(l.contains(s), "missing {s} in\n{l}");
         }

@@ -69,6 +69,7 @@ struct App {
     frames: u64,
     last_vpls: (usize, usize),
     last_acceptance: Option<f64>,
+    last_gbuffer_held: bool,
     error: Option<ViewError>,
     done: bool,
 }
@@ -109,6 +110,7 @@ pub fn run(
         frames: 0,
         last_vpls: (0, 0),
         last_acceptance: None,
+        last_gbuffer_held: false,
         error: None,
         done: false,
     };
@@ -267,6 +269,7 @@ impl App {
             if self.rays_per_second == 0.0 { rps } else { SMOOTHING * (rps - self.rays_per_second) };
         self.last_vpls = (report.vpls, report.vpls_reused);
         self.last_acceptance = report.acceptance;
+        self.last_gbuffer_held = report.gbuffer_held;
         if self.status.as_ref().is_some_and(|(_, t)| t.elapsed() > STATUS_TIME) {
             self.status = None;
         }
@@ -297,6 +300,7 @@ impl App {
                 vpls_reused: self.last_vpls.1,
                 rays_per_second: self.rays_per_second,
                 acceptance: self.last_acceptance,
+                gbuffer_held: self.last_gbuffer_held,
                 accumulated: self.fl.session.accumulated(),
                 render_size: (rw, rh),
                 status: self.status.as_ref().map(|(s, _)| s.as_str()),
