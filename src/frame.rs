@@ -224,6 +224,14 @@ pub fn gather_frame_reusing(
         }
         _ => None,
     };
+    // A held G-buffer's windows take the same neighbours every frame: the first frame that
+    // filters it records which, the next ones take the record (the same image, bit for bit),
+    // and their pass fills only the planes the record leaves to read.
+    let size = (camera.width, camera.height);
+    let (recorded, mut record) = match spare.masks {
+        Some((s, wh, m)) => (Some(s) == filter && wh == size, m),
+        None => (false, Vec::new()),
+    };
     let pass = OnePass {
         camera,
         seed,
@@ -236,6 +244,7 @@ pub fn gather_frame_reusing(
         min_distance: settings.min_distance,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
         gbuffer: camera_rays.gbuffer,
+        ratio_planes_on_reuse: recorded,
     };
     let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes, held, reused } =
         gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
@@ -247,13 +256,6 @@ pub fn gather_frame_reusing(
     // (The planes were filled during the pass: their time counts there.)
     // The image: filtered light plus the emission seen directly, written by the filter as it
     // goes.
-    // A held G-buffer's windows take the same neighbours every frame: the first frame that
-    // filters it records which, the next ones take the record (the same image, bit for bit).
-    let size = (camera.width, camera.height);
-    let (recorded, mut record) = match spare.masks {
-        Some((s, wh, m)) => (Some(s) == filter && wh == size, m),
-        None => (false, Vec::new()),
-    };
     let mut masks = None;
     let (image, planes) = match (filter, pass.planes, planes) {
         (Some(s), Some(layout), Some(planes)) => {

@@ -87,6 +87,27 @@ impl PlaneLayout {
     }
 }
 
+impl PlaneLayout {
+    /// The ratio planes of [`PlaneLayout::fill_row`] alone (gathered / albedo, where the albedo
+    /// is positive), for a frame whose windows take their neighbours from a record
+    /// ([`Masks::Apply`]), which reads no other plane. The same values as `fill_row` writes.
+    #[inline]
+    pub fn fill_ratio_row(&self, row: &mut [f32], gathered: &[Vec3], albedo: &[Vec3]) {
+        let (pw, pad, w) = (self.pw, self.pad, self.width);
+        let mut spans = row.chunks_exact_mut(pw).skip(4).map(|p| &mut p[pad..pad + w]);
+        let [rx, ry, rz]: [&mut [f32]; 3] = std::array::from_fn(|_| spans.next().unwrap());
+        let (gathered, albedo) = (&gathered[..w], &albedo[..w]);
+        for x in 0..w {
+            let a = albedo[x];
+            if a.min_element() <= 0.0 {
+                continue;
+            }
+            let r = gathered[x] / a;
+            (rx[x], ry[x], rz[x]) = (r.x, r.y, r.z);
+        }
+    }
+}
+
 /// Filters `gathered` (per-pixel VPL light) using the G-buffer's albedo, normals and depths.
 pub fn filter(
     width: u32,
@@ -391,8 +412,9 @@ mod tests {
 
     /// A record of which neighbours each window took ([`Masks`]), made while filtering one light,
     /// filters another light over the same G-buffer to the straightforward filter's values, bit
-    /// for bit, without reading the normal and depth planes (they are overwritten with garbage
-    /// here); recording does not change the image. Random surfaces with edges and holes, and
+    /// for bit, from planes where only the ratio planes were filled for it
+    /// ([`PlaneLayout::fill_ratio_row`]) and without reading the normal and depth planes (they
+    /// are overwritten with garbage here); recording does not change the image. Random surfaces with edges and holes, and
     /// every window size of the test above.
     #[test]
     fn recorded_neighbour_masks_filter_another_light_as_the_tests_would() {
@@ -434,9 +456,13 @@ mod tests {
             assert_eq!(record.len(), Masks::len(w, h, &s));
             let slow = |g: &[Vec3]| filter_one_centre_at_a_time(w, h, g, &albedo, &normal, &depth, &s);
             assert_eq!(recorded, slow(&first), "{w}x{h} {n}x{m}: recording changed the image");
-            // The second light's planes, with the normal and depth planes spoiled.
-            let mut planes = planes_of(&second);
-            for row in planes.chunks_mut(layout.row_len()) {
+            // The first light's planes with the second's ratios written over them
+            // (`fill_ratio_row`, what a frame that applies a record fills), and the normal and
+            // depth planes spoiled.
+            let mut planes = planes_of(&first);
+            for (y, row) in planes.chunks_mut(layout.row_len()).enumerate() {
+                let r = y * w as usize..(y + 1) * w as usize;
+                layout.fill_ratio_row(row, &second[r.clone()], &albedo[r]);
                 row[..4 * layout.pw].fill(f32::NAN);
             }
             let applied = run(&second, &planes, Masks::Apply(&record));

@@ -49,6 +49,10 @@ pub struct OnePass<'a> {
     pub planes: Option<PlaneLayout>,
     /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
     pub gbuffer: GBufferUse,
+    /// When the pass reuses a held G-buffer, fill only the planes of the light's ratio to the
+    /// albedo ([`PlaneLayout::fill_ratio_row`]): the discontinuity buffer will take its windows'
+    /// neighbours from a record ([`crate::filter::Masks::Apply`]) and read no other plane.
+    pub ratio_planes_on_reuse: bool,
 }
 
 /// How a frame gets its camera rays: whether it traces, holds or reuses its G-buffer, and
@@ -187,6 +191,7 @@ pub fn trace_and_gather(
         min_distance,
         planes: layout,
         gbuffer: use_gbuffer,
+        ratio_planes_on_reuse,
     } = *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
@@ -306,7 +311,11 @@ pub fn trace_and_gather(
                 if let (Some(l), Some(p)) = (layout, plane_band) {
                     for (k, plane_row) in p.chunks_mut(l.row_len()).enumerate() {
                         let r = k * row..(k + 1) * row;
-                        l.fill_row(plane_row, &light[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+                        if reuse && ratio_planes_on_reuse {
+                            l.fill_ratio_row(plane_row, &light[r.clone()], &albedo[r]);
+                        } else {
+                            l.fill_row(plane_row, &light[r.clone()], &albedo[r.clone()], &normal[r.clone()], &depth[r]);
+                        }
                     }
                 }
                 (st, energy, t_primary, t.elapsed() - t_primary)
@@ -446,6 +455,7 @@ mod tests {
                     min_distance,
                     planes: Some(layout),
                     gbuffer: GBufferUse::Trace,
+                    ratio_planes_on_reuse: false,
                 };
                 // Three times: fresh arrays, the first pass's arrays reused, and reused arrays
                 // filled with garbage (NaN, infinities, huge and negative values): nothing a pass
@@ -572,6 +582,7 @@ mod tests {
                     min_distance: 0.0,
                     planes: Some(layout),
                     gbuffer,
+                    ratio_planes_on_reuse: false,
                 };
                 let mut st = RayStats::default();
                 let out = trace_and_gather(&scene, &accel, vpls, &pass, lent, &mut st);
