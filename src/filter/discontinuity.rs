@@ -414,8 +414,8 @@ mod tests {
     /// filters another light over the same G-buffer to the straightforward filter's values, bit
     /// for bit, from planes where only the ratio planes were filled for it
     /// ([`PlaneLayout::fill_ratio_row`]) and without reading the normal and depth planes (they
-    /// are overwritten with garbage here); recording does not change the image. Random surfaces with edges and holes, and
-    /// every window size of the test above.
+    /// are overwritten with garbage here); recording does not change the image. Random surfaces
+    /// with edges and holes, and every window size of the test above.
     #[test]
     fn recorded_neighbour_masks_filter_another_light_as_the_tests_would() {
         let mut rng = crate::sampling::Pcg32::new(11);
