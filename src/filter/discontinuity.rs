@@ -377,29 +377,41 @@ mod tests {
         out
     }
 
+    /// Image sizes and window sizes of the tests below (windows wider and taller than the image
+    /// among them).
+    const SIZES: [(u32, u32, u32, u32); 5] = [(37, 11, 8, 8), (8, 8, 4, 4), (5, 3, 8, 8), (64, 9, 3, 5), (17, 2, 1, 1)];
+
+    /// A random G-buffer of `w`×`h` pixels with edges: albedo, normal and depth per pixel, three
+    /// surfaces in vertical stripes (one slightly bumpy), holes (a zero albedo channel, or no hit).
+    fn random_surfaces(rng: &mut crate::sampling::Pcg32, w: u32, h: u32) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
+        let mut u = || rng.next_f32();
+        let (mut albedo, mut normal, mut depth) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..(w * h) as usize {
+            let surface = (i % w as usize) / 6 % 3;
+            albedo.push(if u() < 0.1 { Vec3::new(0.5, 0.0, 0.5) } else { Vec3::new(0.2 + u(), 0.3, 0.9) });
+            normal.push(match surface {
+                0 => Vec3::Z,
+                1 => Vec3::new(0.0, 0.6, 0.8),
+                _ => Vec3::new(0.05 * u(), 0.0, 1.0).normalize(),
+            });
+            depth.push(if u() < 0.05 { 0.0 } else { 1.0 + surface as f32 + 0.04 * u() });
+        }
+        (albedo, normal, depth)
+    }
+
+    /// Random gathered light for `len` pixels.
+    fn random_light(rng: &mut crate::sampling::Pcg32, len: usize) -> Vec<Vec3> {
+        (0..len).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0).collect()
+    }
+
     /// Random surfaces with edges, holes (zero albedo, no hit) and every window size: the
     /// vectorised filter gives the straightforward one's values, bit for bit.
     #[test]
     fn vectorised_filter_matches_the_straightforward_one() {
         let mut rng = crate::sampling::Pcg32::new(7);
-        for (w, h, n, m) in [(37u32, 11u32, 8u32, 8u32), (8, 8, 4, 4), (5, 3, 8, 8), (64, 9, 3, 5), (17, 2, 1, 1)] {
-            let len = (w * h) as usize;
-            let mut u = || rng.next_f32();
-            let mut gathered = Vec::with_capacity(len);
-            let mut albedo = Vec::with_capacity(len);
-            let mut normal = Vec::with_capacity(len);
-            let mut depth = Vec::with_capacity(len);
-            for i in 0..len {
-                let surface = (i % w as usize) / 6 % 3;
-                gathered.push(Vec3::new(u(), u(), u()) * 4.0);
-                albedo.push(if u() < 0.1 { Vec3::new(0.5, 0.0, 0.5) } else { Vec3::new(0.2 + u(), 0.3, 0.9) });
-                normal.push(match surface {
-                    0 => Vec3::Z,
-                    1 => Vec3::new(0.0, 0.6, 0.8),
-                    _ => Vec3::new(0.05 * u(), 0.0, 1.0).normalize(),
-                });
-                depth.push(if u() < 0.05 { 0.0 } else { 1.0 + surface as f32 + 0.04 * u() });
-            }
+        for (w, h, n, m) in SIZES {
+            let gathered = random_light(&mut rng, (w * h) as usize);
+            let (albedo, normal, depth) = random_surfaces(&mut rng, w, h);
             let s = DiscontinuitySettings::new(n, m);
             let fast = filter(w, h, &gathered, &albedo, &normal, &depth, &s);
             let slow = filter_one_centre_at_a_time(w, h, &gathered, &albedo, &normal, &depth, &s);
@@ -419,25 +431,9 @@ mod tests {
     #[test]
     fn recorded_neighbour_masks_filter_another_light_as_the_tests_would() {
         let mut rng = crate::sampling::Pcg32::new(11);
-        for (w, h, n, m) in [(37u32, 11u32, 8u32, 8u32), (8, 8, 4, 4), (5, 3, 8, 8), (64, 9, 3, 5), (17, 2, 1, 1)] {
-            let len = (w * h) as usize;
-            let mut u = || rng.next_f32();
-            let mut light = || -> Vec<Vec3> { (0..len).map(|_| Vec3::new(u(), u(), u()) * 4.0).collect() };
-            let (first, second) = (light(), light());
-            let mut u = || rng.next_f32();
-            let albedo: Vec<Vec3> = (0..len)
-                .map(|_| if u() < 0.1 { Vec3::new(0.5, 0.0, 0.5) } else { Vec3::new(0.2 + u(), 0.3, 0.9) })
-                .collect();
-            let normal: Vec<Vec3> = (0..len)
-                .map(|i| match (i % w as usize) / 6 % 3 {
-                    0 => Vec3::Z,
-                    1 => Vec3::new(0.0, 0.6, 0.8),
-                    _ => Vec3::new(0.05 * u(), 0.0, 1.0).normalize(),
-                })
-                .collect();
-            let depth: Vec<f32> = (0..len)
-                .map(|i| if u() < 0.05 { 0.0 } else { 1.0 + ((i % w as usize) / 6 % 3) as f32 + 0.04 * u() })
-                .collect();
+        for (w, h, n, m) in SIZES {
+            let (first, second) = (random_light(&mut rng, (w * h) as usize), random_light(&mut rng, (w * h) as usize));
+            let (albedo, normal, depth) = random_surfaces(&mut rng, w, h);
             let s = DiscontinuitySettings::new(n, m);
             let layout = PlaneLayout::new(w, &s);
             let planes_of = |gathered: &[Vec3]| {

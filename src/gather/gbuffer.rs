@@ -159,29 +159,27 @@ impl PrimaryRays<'_> {
         let deferred = camera.lens_radius <= 0.0 && (!jitter || sequence.is_some());
         let setup = |x: u32, y: u32| {
             let pixel = y as u64 * w as u64 + x as u64;
-            let off: Vec2 = match (jitter, sequence) {
-                (false, _) => vec2(0.5, 0.5),
-                (true, Some(q)) => q.offset(pixel),
-                (true, None) => Vec2::ZERO,
-            };
+            let corner = vec2(x as f32, y as f32);
             if deferred {
-                // (Offset draws, made and discarded for a sequence, and the lens sample.)
+                // The pixel centre or the sequence's position; the stream will skip the set-up's
+                // draws (the offset drawn and discarded for a sequence, and the lens sample).
+                let off = sequence.filter(|_| jitter).map_or(vec2(0.5, 0.5), |q| q.offset(pixel));
                 let skip = if jitter { 4 } else { 2 };
-                return (PixelStream::Deferred { pixel, skip }, vec2(x as f32, y as f32) + off, Vec2::splat(0.5));
+                return (PixelStream::Deferred { pixel, skip }, corner + off, Vec2::splat(0.5));
             }
             let mut s = IndependentSampler::for_stream(seed, TAG_GBUFFER, pixel);
             // (A sequence's position replaces the stream's, which is drawn all the same: the lens
             // and bounce samples stay those of the stream.)
             let off = match (jitter, sequence) {
+                (false, _) => vec2(0.5, 0.5),
                 (true, None) => s.next_2d(),
-                (true, Some(_)) => {
+                (true, Some(q)) => {
                     s.next_2d();
-                    off
+                    q.offset(pixel)
                 }
-                (false, _) => off,
             };
             let lens = s.next_2d();
-            (PixelStream::Made(s), vec2(x as f32, y as f32) + off, lens)
+            (PixelStream::Made(s), corner + off, lens)
         };
         let mut st = RayStats::default();
         let mut primary = 0;
