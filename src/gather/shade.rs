@@ -231,7 +231,7 @@ impl Prepared {
 
     /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.
     #[inline(always)]
-    fn origin_towards(&self, target: Vec3) -> Vec3 {
+    pub(crate) fn origin_towards(&self, target: Vec3) -> Vec3 {
         if self.ng.dot(target - self.p) >= 0.0 {
             self.p + self.ng * self.offset
         } else {
