@@ -257,37 +257,41 @@ pub fn estimate_pc_picks<K: MutationKernel>(
     seed: u64,
     stats: &mut RayStats,
 ) -> (f64, Vec<PathState>) {
-    let results: Vec<(Option<PathState>, f64, RayStats)> = (0..n)
+    // Only the weights are kept: a chosen sample is drawn again from its own stream (the same
+    // state, bit for bit). Keeping all n states cost an allocation and a copy of each path
+    // when a still camera's chains continue and pick none.
+    let stream = |i: u64| Pcg32::from_words(&[seed, TAG_PC, i]);
+    let results: Vec<(f64, RayStats)> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let mut rng = Pcg32::from_words(&[seed, TAG_PC, i as u64]);
             let mut st = RayStats::default();
-            let (x, w) = kernel.independent(ctx, &mut rng, &mut st);
-            (x, if w.is_finite() { w } else { 0.0 }, st)
+            let (_, w) = kernel.independent(ctx, &mut stream(i as u64), &mut st);
+            (if w.is_finite() { w } else { 0.0 }, st)
         })
         .collect();
-    let total: f64 = results.iter().map(|r| r.1).sum();
+    let total: f64 = results.iter().map(|r| r.0).sum();
     for r in &results {
-        *stats += r.2;
+        *stats += r.1;
     }
     if !(total > 0.0) {
         return (0.0, Vec::new());
     }
+    // A sample has a positive weight exactly when it has a state.
     let chosen = (0..picks as u64)
         .filter_map(|j| {
             let mut rng = Pcg32::from_words(&[seed, TAG_PC, u64::MAX - j]);
             let mut pick = rng.next_f64() * total;
             let mut chosen = None;
-            for (x, w, _) in &results {
-                if x.is_some() && *w > 0.0 {
-                    chosen = x.as_ref();
+            for (i, (w, _)) in results.iter().enumerate() {
+                if *w > 0.0 {
+                    chosen = Some(i);
                     if pick < *w {
                         break;
                     }
                     pick -= w;
                 }
             }
-            chosen.cloned()
+            chosen.and_then(|i| kernel.independent(ctx, &mut stream(i as u64), &mut RayStats::default()).0)
         })
         .collect();
     (total / n as f64, chosen)
