@@ -21,8 +21,9 @@
 //! frame; the running mean converges to the same image (each jittered position is uniform in
 //! its pixel, as before). The jittered positions of a pixel step through a low-discrepancy sequence
 //! ([`JitterSequence`]), so that fewer of them cover the pixel as evenly as independent ones
-//! did every frame. The first frame after a change samples pixel centres and is not held (the
-//! camera may move again).
+//! did every frame. The first frame after a change samples pixel centres; it and the next
+//! K − 1 frames are traced and not held (the camera may move again, and the first frames after
+//! it stops each take a new position, so the edges clean up as quickly as without holding).
 
 use std::time::{Duration, Instant};
 
@@ -77,16 +78,29 @@ pub fn frame_seed(seed: u64, index: u64) -> u64 {
     hash_words(&[seed, TAG_VIEW_FRAME, index])
 }
 
-/// The G-buffer of a frame that joins a running mean of `accumulated` frames, traced every
-/// `every`-th frame while the camera stands still (module doc). The first frame after a change
-/// (`accumulated` 0) is traced and not held; then frames 1, 1 + every, 1 + 2·every… trace and
+/// The G-buffer of a frame that joins a running mean of `accumulated` frames while the camera
+/// stands still, holding G-buffers for `every` frames (module doc). The first `every` frames
+/// after a change (`accumulated` 0 … every − 1) are traced and not held, so the first frames
+/// after the camera stops each take a new jitter position; then frames every, 2·every… trace and
 /// hold, and the others reuse.
 pub fn gbuffer_use(accumulated: u32, every: u32) -> GBufferUse {
     match accumulated {
         _ if every <= 1 => GBufferUse::Trace,
-        0 => GBufferUse::Trace,
-        a if (a - 1) % every == 0 => GBufferUse::TraceAndHold,
+        a if a < every => GBufferUse::Trace,
+        a if a % every == 0 => GBufferUse::TraceAndHold,
         _ => GBufferUse::Reuse,
+    }
+}
+
+/// The index in a pixel's jitter sequence of a jittered frame (`accumulated` ≥ 1) under
+/// [`gbuffer_use`]: one new position per traced G-buffer, so frames 1 … every − 1 take
+/// positions 0 … every − 2 and a held G-buffer's frames share its position.
+pub fn jitter_index(accumulated: u32, every: u32) -> u32 {
+    let every = every.max(1);
+    match accumulated {
+        0 => 0,
+        a if a < every => a - 1,
+        a => every - 1 + (a - every) / every,
     }
 }
 
@@ -301,7 +315,7 @@ impl Session {
             gbuffer: gbuffer_use(self.accumulated, k),
             // The jittered G-buffers of a still camera step through one sequence per pixel.
             sequence: (self.accumulated > 0)
-                .then(|| JitterSequence { seed: self.settings.seed, index: (self.accumulated - 1) / k }),
+                .then(|| JitterSequence { seed: self.settings.seed, index: jitter_index(self.accumulated, k) }),
         };
         let spare = std::mem::take(&mut self.spare);
         let (scene, accel, camera) = (&self.scene, &self.accel, &self.camera);
@@ -363,12 +377,19 @@ mod tests {
     #[test]
     fn a_still_camera_traces_its_gbuffer_every_k_frames() {
         use GBufferUse::*;
-        let pattern: Vec<GBufferUse> = (0..7).map(|a| gbuffer_use(a, 3)).collect();
-        assert_eq!(pattern, [Trace, TraceAndHold, Reuse, Reuse, TraceAndHold, Reuse, Reuse]);
+        let pattern: Vec<GBufferUse> = (0..10).map(|a| gbuffer_use(a, 3)).collect();
+        assert_eq!(
+            pattern,
+            [Trace, Trace, Trace, TraceAndHold, Reuse, Reuse, TraceAndHold, Reuse, Reuse, TraceAndHold]
+        );
         assert!((0..7).all(|a| gbuffer_use(a, 1) == Trace));
+        // Every traced jittered frame takes the next position; reusing frames keep it.
+        let index: Vec<u32> = (1..10).map(|a| jitter_index(a, 3)).collect();
+        assert_eq!(index, [0, 1, 2, 2, 2, 3, 3, 3, 4]);
+        assert!((1..7).all(|a| jitter_index(a, 1) == a - 1));
     }
 
-    /// Through a session: a still camera's frames after the first two reuse the G-buffer (and
+    /// Through a session: a still camera's frames after the first K reuse the G-buffer (and
     /// equal frames traced with the holding frame's jitter: `gather::tests`); a camera that
     /// moves every frame never does, and a frame after a move traces.
     #[test]
@@ -397,15 +418,18 @@ mod tests {
             (o.stats.gbuffer_reused == 1, closest == 0)
         };
         let still: Vec<(bool, bool)> = (0..6).map(|_| reused(&mut s)).collect();
-        let want = [false, false, true, true, false, true];
+        let want = [false, false, false, false, true, true];
         assert_eq!(still, want.map(|r| (r, r)), "reused frames, and frames without camera rays");
         for k in 1..5 {
             let e = camera.position + Vec3::X * 0.001 * k as f32;
             s.set_camera(Camera::look_at(e, e + camera.forward, Vec3::Y, camera.fov_y_radians, 24, 16));
             assert_eq!(reused(&mut s), (false, false), "moving frame {k}");
         }
-        // (The last moving frame started the mean; the next one, jittered, traces and holds.)
-        assert_eq!(reused(&mut s), (false, false), "the first still frame after a move");
+        // (The last moving frame started the mean; the next two trace, the third traces and
+        // holds.)
+        for k in 1..4 {
+            assert_eq!(reused(&mut s), (false, false), "still frame {k} after a move");
+        }
         assert_eq!(reused(&mut s), (true, true));
     }
 
