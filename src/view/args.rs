@@ -104,8 +104,9 @@ pub struct ViewArgs {
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub vpl_reuse: u32,
     /// While the camera stands still, trace the G-buffer (camera rays, receivers) every K-th
-    /// frame and gather the frames in between from it: they differ only in their VPLs. The
-    /// anti-aliasing jitter then moves every K frames. 1 traces every frame.
+    /// frame and gather the frames in between from it: they differ only in their VPLs. The first
+    /// K frames after the camera stops are each traced with a new anti-aliasing jitter; after
+    /// them the jitter moves every K frames. 1 traces every frame.
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub gbuffer_frames: u32,
     /// Headless, still camera: print the relMSE of the accumulated image against this EXR
