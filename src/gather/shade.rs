@@ -377,8 +377,9 @@ impl VplLanes {
         VplLanes { chunk: chunkable(set).then(|| VplChunk::new(set, &ids)), len: set.len() }
     }
 
-    /// Calls `f(j, contribution, origin, target)` for every lane j of `active` whose VPL has a
-    /// nonzero unshadowed contribution at `r` (clamped at `g_max`), in lane order.
+    /// Calls `f(j, contribution)` for every lane j of `active` whose VPL has a nonzero
+    /// unshadowed contribution at `r` (clamped at `g_max`), in lane order. (Its shadow ray
+    /// starts at [`Prepared::origin_towards`] the VPL.)
     #[inline]
     pub(crate) fn each_unshadowed(
         &self,
@@ -387,7 +388,7 @@ impl VplLanes {
         r: &Receiver,
         active: u32,
         g_max: f32,
-        mut f: impl FnMut(usize, Vec3, Vec3, Vec3),
+        mut f: impl FnMut(usize, Vec3),
     ) {
         let active = active & ((1u32 << self.len) - 1);
         if let (Some(ch), Some(l)) = (&self.chunk, &pt.lambert) {
@@ -396,16 +397,15 @@ impl VplLanes {
             while m != 0 {
                 let j = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let target = set.position[j];
-                f(j, lc.lane(j).0, pt.origin_towards(target), target);
+                f(j, lc.lane(j).0);
             }
         } else {
             let mut m = active;
             while m != 0 {
                 let j = m.trailing_zeros() as usize;
                 m &= m - 1;
-                if let Some((c, o, target)) = pt.unshadowed(r, set, j, g_max) {
-                    f(j, c, o, target);
+                if let Some((c, _, _)) = pt.unshadowed(r, set, j, g_max) {
+                    f(j, c);
                 }
             }
         }
@@ -896,7 +896,9 @@ mod tests {
                 let pt = Prepared::new(&scene, r);
                 for active in [0xff, 0b1010_0101, 0b1] {
                     let mut got = Vec::new();
-                    lanes.each_unshadowed(&set, &pt, r, active, 0.05, |j, c, o, t| got.push((j, c, o, t)));
+                    lanes.each_unshadowed(&set, &pt, r, active, 0.05, |j, c| {
+                        got.push((j, c, pt.origin_towards(set.position[j]), set.position[j]))
+                    });
                     let want: Vec<_> = (0..set.len())
                         .filter(|&j| active >> j & 1 != 0)
                         .filter_map(|j| pt.unshadowed(r, &set, j, 0.05).map(|(c, o, t)| (j, c, o, t)))

@@ -692,7 +692,7 @@ impl<K: MutationKernel> Mir<K> {
                     let ProbeBatch { receivers, rays: count, .. } = batch(b);
                     lit.iter_mut().for_each(Vec::clear);
                     for (i, (r, pt)) in receivers.iter().enumerate() {
-                        lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c, _, _| {
+                        lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c| {
                             let y = luminance(c);
                             if y > 0.0 {
                                 lit[j].push((i as u32, y));
