@@ -198,8 +198,13 @@ fn vpl_reuse_keeps_the_mean_brightness_of_the_frames() {
 #[test]
 fn a_still_camera_converges_towards_a_long_run() {
     let dir = tmp("converge");
+    // The view leaves the light out (a narrower field of view): at 48×48 the light's edge pixels,
+    // where one jittered position that sees the emitter outweighs the rest, dominate the relMSE
+    // and make it rise between 4 and 16 frames for most seeds even when every frame is traced
+    // (--gbuffer-frames 1: 6 of seeds 0–9 failed). Without it, seeds 0–9 all pass.
     let view = |extra: &[&str]| {
-        let mut a = vec!["view", "--headless", "--width", "48", "--height", "48", "--vpl-sampler", "sir"];
+        let mut a =
+            vec!["view", "--headless", "--width", "48", "--height", "48", "--fov-y", "25", "--vpl-sampler", "sir"];
         a.extend_from_slice(extra);
         mirage(&a)
     };
