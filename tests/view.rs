@@ -171,7 +171,7 @@ fn vpl_reuse_keeps_the_mean_brightness_of_the_frames() {
             seed,
             fresh_chains: fresh,
             reuse_frames: k,
-            gbuffer_frames: 4,
+            ..Default::default()
         };
         let mut s = Session::new(scene, accel, fly.camera(32, 32), settings);
         let path = CameraPath::Builtin(BuiltinPath::Orbit);
@@ -241,6 +241,57 @@ fn camera_jumps_are_detected_on_cuts_but_not_on_smooth_paths() {
     assert!(out.contains("1 camera jumps"), "{out}");
     let out = success(&run(&headless(&["--frames", "24", "--camera-path", "dolly"])));
     assert!(!out.contains("camera jumps"), "{out}");
+}
+
+/// Frames `0..n` of a recording.
+fn recorded(dir: &std::path::Path, n: usize) -> Vec<Image> {
+    (0..n).map(|i| output::read_exr(&dir.join(format!("frame-{i:05}.exr"))).unwrap()).collect()
+}
+
+#[test]
+fn vpls_sampled_during_the_previous_gather_are_the_vpls_the_frame_would_sample() {
+    // A still camera: from the third frame on, each frame's VPLs are sampled during the
+    // previous frame's gather, with the same seed and sampler state, so the same pixels as
+    // sampling them when the frame starts, for the stateful chain too.
+    for sampler in ["mtmh", "sir"] {
+        let (a, b) = (tmp(&format!("ahead-{sampler}")), tmp(&format!("serial-{sampler}")));
+        let frames = |dir: &PathBuf, extra: &[&str]| {
+            let mut args =
+                vec!["view", "--headless", "--width", "40", "--height", "32", "--vpls", "64", "--frames", "6"];
+            args.extend_from_slice(&["--vpl-sampler", sampler, "--record", dir.to_str().unwrap(), "--record-exr"]);
+            args.extend_from_slice(extra);
+            let out = success(&mirage(&args));
+            (out.lines().last().unwrap().to_string(), recorded(dir, 6))
+        };
+        let (ahead, with) = frames(&a, &[]);
+        let (serial, without) = frames(&b, &["--no-overlap"]);
+        assert!(ahead.contains("VPLs of 4 frames sampled during the previous gather"), "{ahead}");
+        assert!(!serial.contains("previous gather"), "{serial}");
+        assert!(with == without, "{sampler}: frames differ with VPLs sampled ahead");
+    }
+    // The camera moves after three still frames: the VPLs sampled ahead for the old view are
+    // dropped and the frame samples its own. sir-cdf chooses lights by their share of the
+    // image, so its VPLs depend on the view; it keeps no state between frames, so dropping
+    // them leaves every frame as without sampling ahead.
+    let dir = tmp("ahead-move");
+    let path = dir.join("still-then-move.txt");
+    std::fs::write(&path, "0 1.5 0.4 0 0.9 6\n".repeat(3) + &"0.3 1.5 0.6 0 0.9 6\n".repeat(3)).unwrap();
+    let frames = |name: &str, extra: &[&str]| {
+        let rec = dir.join(name);
+        let p = path.to_str().unwrap();
+        let mut args = vec!["view", "left-right", "--headless", "--width", "40", "--height", "32", "--vpls", "64"];
+        args.extend_from_slice(&["--frames", "6", "--vpl-sampler", "sir-cdf", "--camera-path", p, "--vpl-reuse", "1"]);
+        args.extend_from_slice(&["--record", rec.to_str().unwrap(), "--record-exr"]);
+        args.extend_from_slice(extra);
+        let out = success(&mirage(&args));
+        (out.lines().last().unwrap().to_string(), recorded(&rec, 6))
+    };
+    let (ahead, with) = frames("ahead", &[]);
+    let (_, without) = frames("serial", &["--no-overlap"]);
+    // Frame 2 takes VPLs sampled during frame 1; those sampled during frame 2 are dropped at
+    // the move, and frame 4 (still again) samples ahead for frame 5.
+    assert!(ahead.contains("VPLs of 2 frames sampled during the previous gather"), "{ahead}");
+    assert!(with == without, "frames differ after a move dropped the VPLs sampled ahead");
 }
 
 #[test]

@@ -109,6 +109,12 @@ pub struct ViewArgs {
     /// them the jitter moves every K frames. 1 traces every frame.
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub gbuffer_frames: u32,
+    /// Sample each frame's VPLs only when the frame starts. By default, while the camera stands
+    /// still, the next frame's VPLs are sampled during this frame's gather, on the cores the
+    /// gather leaves idle (the same VPLs: same seed, same sampler state); the stage times then
+    /// overlap and no longer add up to the frame time.
+    #[arg(long)]
+    pub no_overlap: bool,
     /// Headless, still camera: print the relMSE of the accumulated image against this EXR
     /// after 1, 2, 4, 8… frames.
     #[arg(long, value_name = "REF.exr", requires = "headless", conflicts_with = "camera_path")]
@@ -212,6 +218,7 @@ impl ViewArgs {
                 fresh_chains: self.fresh_chains,
                 reuse_frames: self.vpl_reuse,
                 gbuffer_frames: self.gbuffer_frames,
+                overlap: !self.no_overlap,
             },
             scale: self.scale,
             curve: self.exposure.map_or(ToneCurve::Reinhard, ToneCurve::Exposure),
@@ -247,6 +254,7 @@ mod tests {
     #[test]
     fn defaults_are_the_interactive_settings_and_the_preferred_sampler() {
         let o = parse(&[]).options().unwrap();
+        assert_eq!(o.session, SessionSettings::default());
         assert_eq!(o.session.frame.vpls, 256);
         assert_eq!(o.session.frame.interleave, (8, 8));
         assert_eq!(sampler_name(o.session.sampler), if sampler_exists("mtmh") { "mtmh" } else { "sir" });

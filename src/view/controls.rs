@@ -202,15 +202,7 @@ mod tests {
         let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
         let accel = Accel::build(&scene.mesh);
         let camera = scene.camera.clone().with_resolution(8, 8);
-        let settings = SessionSettings {
-            sampler: VplSamplerArg::Sir,
-            max_depth: 8,
-            frame: crate::frame::FrameSettings::interactive(),
-            seed: 0,
-            fresh_chains: false,
-            reuse_frames: 4,
-            gbuffer_frames: 4,
-        };
+        let settings = SessionSettings { sampler: VplSamplerArg::Sir, max_depth: 8, ..Default::default() };
         Session::new(scene, accel, camera, settings)
     }
 

@@ -4,7 +4,9 @@
 //!
 //! Timed stages, per frame: `vpls` (the sampler), `primary` (G-buffer rays), `shadow` (the
 //! gather), `filter` (discontinuity buffer), `display` (running mean + tone mapping). The frame
-//! time is their wall-clock sum; measures and file writes are outside it.
+//! time is the wall clock from the frame's start to its display; measures and file writes are
+//! outside it. It is the stages' sum, except that VPLs sampled ahead during the previous frame's
+//! gather ([`super::session`]) report the time they took beside it.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -99,6 +101,8 @@ pub struct Totals {
     pub vpls_reused: u64,
     /// Frames gathered from a held G-buffer (still camera, no camera rays).
     pub gbuffers_reused: u64,
+    /// Frames whose VPLs were sampled during the previous frame's gather.
+    pub vpls_ahead: u64,
 }
 
 impl Totals {
@@ -144,6 +148,8 @@ pub struct FrameReport {
     pub rel_mse: Option<f64>,
     /// Gathered from a held G-buffer (no camera rays).
     pub gbuffer_held: bool,
+    /// Its VPLs were sampled during the previous frame's gather.
+    pub vpls_ahead: bool,
 }
 
 /// The shared loop body and its state.
@@ -240,6 +246,7 @@ impl FrameLoop {
         t.vpls += outcome.vpls_gathered as u64;
         t.vpls_reused += outcome.vpls_reused as u64;
         t.gbuffers_reused += s.gbuffer_reused;
+        t.vpls_ahead += outcome.vpls_ahead as u64;
 
         let flicker = self.flicker.as_mut().and_then(|m| m.push(&outcome.image));
         self.session.recycle(outcome.image);
@@ -271,6 +278,7 @@ impl FrameLoop {
             flicker,
             rel_mse,
             gbuffer_held: s.gbuffer_reused > 0,
+            vpls_ahead: outcome.vpls_ahead,
         })
     }
 
@@ -292,7 +300,7 @@ impl FrameLoop {
         format!(
             "view {scene} ({mode}): {} frames {w}×{h}, {} VPLs {}, interleave {n}x{m}, clamp {}, filter {}, {}: \
              {:.2} frames/s ({:.1} ms/frame: VPLs {:.1}, primary {:.1}, shadow {:.1}, filter {:.1}, display {:.1} ms), \
-             {:.2} Mrays/s, acceptance {}{}{}{}{}",
+             {:.2} Mrays/s, acceptance {}{}{}{}{}{}",
             t.frames,
             s.frame.vpls,
             self.session.sampler_name(),
@@ -317,6 +325,14 @@ impl FrameLoop {
                 format!(
                     ", {} of {} frames gathered from a held G-buffer (traced every {} while still)",
                     t.gbuffers_reused, t.frames, s.gbuffer_frames
+                )
+            } else {
+                String::new()
+            },
+            if t.vpls_ahead > 0 {
+                format!(
+                    ", VPLs of {} frames sampled during the previous gather (their VPL time overlaps it)",
+                    t.vpls_ahead
                 )
             } else {
                 String::new()

@@ -38,6 +38,9 @@ pub struct HudData<'a> {
     pub accumulated: u32,
     /// The last frame gathered from a held G-buffer (still camera: no camera rays).
     pub gbuffer_held: bool,
+    /// The last frame's VPLs were sampled during the frame before's gather: their time
+    /// overlapped it.
+    pub vpls_ahead: bool,
     /// Render resolution.
     pub render_size: (u32, u32),
     /// A transient message (last key's effect, screenshot path).
@@ -59,8 +62,9 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
             d.sampler.to_uppercase()
         ),
         format!(
-            "VPL {:.1}  PRIM {:.1}  SHADOW {:.1}  FILTER {:.1}  DISP {:.1} MS",
+            "VPL {:.1}{}  PRIM {:.1}  SHADOW {:.1}  FILTER {:.1}  DISP {:.1} MS",
             ms(t.vpls),
+            if d.vpls_ahead { " (AHEAD)" } else { "" },
             ms(t.primary),
             ms(t.shadow),
             ms(t.filter),
@@ -132,13 +136,14 @@ mod tests {
             acceptance: Some(0.42),
             accumulated: 7,
             gbuffer_held: true,
+            vpls_ahead: true,
             render_size: (512, 512),
             status: Some("clamp off"),
         };
         let l = lines(&d).join("\n");
         for s in [
             "12.5 FPS",
-            "VPL 1.0",
+            "VPL 1.0 (AHEAD)",
             "PRIM 20.0",
             "SHADOW 30.0",
             "FILTER 10.0",

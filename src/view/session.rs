@@ -24,6 +24,15 @@
 //! did every frame. The first frame after a change samples pixel centres; it and the next
 //! K − 1 frames are traced and not held (the camera may move again, and the first frames after
 //! it stops each take a new position, so the edges clean up as quickly as without holding).
+//!
+//! While the camera stands still, the next frame's VPLs are sampled during this frame's gather
+//! ([`SessionSettings::overlap`]): both run at once on the thread pool, so the cores that one
+//! leaves idle at its ends (the gather's last rows, the chains' and the normalisation's last
+//! tasks) work on the other. They are sampled with the seed and the sampler state the next frame
+//! would sample them with, so they are the same VPLs and the frames the same pixels (tested).
+//! A change before that frame (the camera moves, the settings or the sampler change) drops
+//! them, and the frame samples its own; a Metropolis chain has then advanced one run further,
+//! which changes which VPLs follow but not what they estimate.
 
 use std::time::{Duration, Instant};
 
@@ -37,7 +46,7 @@ use crate::gather::{CameraRays, GBufferUse, JitterSequence};
 use crate::options::VplSamplerArg;
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
-use crate::vpl::VplSampler;
+use crate::vpl::{SamplerStats, VplSampler, VplSet};
 
 /// A per-frame translation beyond this fraction of the scene diagonal is a jump.
 pub const JUMP_DISTANCE: f32 = 0.1;
@@ -122,6 +131,25 @@ pub struct SessionSettings {
     /// While the camera stands still, trace the G-buffer every this many frames and gather the
     /// frames in between from it (1: trace every frame).
     pub gbuffer_frames: u32,
+    /// While the camera stands still, sample the next frame's VPLs during this frame's gather
+    /// (module doc).
+    pub overlap: bool,
+}
+
+impl Default for SessionSettings {
+    /// `mirage view`'s defaults (its flags' defaults, tested there).
+    fn default() -> Self {
+        SessionSettings {
+            sampler: super::args::default_sampler(),
+            max_depth: 128,
+            frame: FrameSettings::interactive(),
+            seed: 0,
+            fresh_chains: false,
+            reuse_frames: 4,
+            gbuffer_frames: 4,
+            overlap: true,
+        }
+    }
 }
 
 /// One rendered frame as the loop sees it.
@@ -141,6 +169,8 @@ pub struct FrameOutcome {
     pub vpls_reused: usize,
     /// Non-finite pixels replaced by black (should stay 0).
     pub non_finite: usize,
+    /// The VPLs were sampled during the previous frame's gather: `stats.vpl_time` overlapped it.
+    pub vpls_ahead: bool,
 }
 
 /// Scene, BVH, sampler state and the accumulated image.
@@ -158,6 +188,16 @@ pub struct Session {
     frame_index: u64,
     mean: Vec<Vec3>,
     accumulated: u32,
+    /// The next frame's VPLs, sampled during this frame's gather (still camera).
+    ahead: Option<Ahead>,
+}
+
+/// VPLs sampled ahead for frame `frame_index`, the sampler's report on them and the time it took.
+struct Ahead {
+    frame_index: u64,
+    vpls: VplSet,
+    stats: SamplerStats,
+    time: Duration,
 }
 
 impl Session {
@@ -176,6 +216,7 @@ impl Session {
             spare: Default::default(),
             frame_index: 0,
             accumulated: 0,
+            ahead: None,
         }
     }
 
@@ -231,6 +272,7 @@ impl Session {
         if motion == Motion::Still {
             return;
         }
+        self.ahead = None;
         self.sampler.camera_moved(motion == Motion::Jump);
         if camera.pixel_count() != self.mean.len() {
             self.mean = vec![Vec3::ZERO; camera.pixel_count()];
@@ -265,6 +307,7 @@ impl Session {
     /// Restarts accumulation without moving the camera.
     pub fn restart(&mut self) {
         self.accumulated = 0;
+        self.ahead = None;
     }
 
     /// Takes back a frame's image ([`FrameOutcome::image`]) once it is no longer needed, for the
@@ -291,7 +334,14 @@ impl Session {
         let mut stats = FrameStats::default();
         let t = Instant::now();
         let m_new = if reuse { reuse::new_vpls(m, self.settings.reuse_frames) } else { m };
-        let (new, sampler_stats) = self.sampler.sample(&self.scene, &self.accel, &self.camera, m_new, seed);
+        // VPLs sampled ahead during the previous frame's gather serve while nothing changed
+        // since (any change dropped them).
+        let ahead = self.ahead.take().filter(|a| a.frame_index == self.frame_index && motion == Motion::Still);
+        let (ahead_time, overlapped) = (ahead.as_ref().map_or(Duration::ZERO, |a| a.time), ahead.is_some());
+        let (new, sampler_stats) = match ahead {
+            Some(a) => (a.vpls, a.stats),
+            None => self.sampler.sample(&self.scene, &self.accel, &self.camera, m_new, seed),
+        };
         let new_len = new.len();
         let keep_history = !fresh && self.settings.reuse_frames > 1;
         let (n, m_tile) = self.settings.frame.interleave;
@@ -303,7 +353,7 @@ impl Session {
             }
             new
         };
-        stats.vpl_time = t.elapsed();
+        stats.vpl_time = ahead_time + t.elapsed();
         stats.sampler = sampler_stats;
         let (vpls_gathered, vpls_reused) = (vpls.len(), vpls.len() - new_len);
         // Jitter (anti-aliasing) only frames that join a running mean: the first frame after a
@@ -318,8 +368,24 @@ impl Session {
                 .then(|| JitterSequence { seed: self.settings.seed, index: jitter_index(self.accumulated, k) }),
         };
         let spare = std::mem::take(&mut self.spare);
-        let (scene, accel, camera) = (&self.scene, &self.accel, &self.camera);
-        let mut frame = frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, rays);
+        let (scene, accel, camera, sampler) = (&self.scene, &self.accel, &self.camera, &mut self.sampler);
+        let gather = || frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, rays);
+        // A still camera is likely still at the next frame: its VPLs (m new ones, as a still
+        // frame takes) are sampled beside this gather, with the seed and the sampler state the
+        // next frame would sample them with, so the same VPLs.
+        let mut frame = if self.settings.overlap && !fresh && motion == Motion::Still {
+            let index = self.frame_index + 1;
+            let next_seed = frame_seed(self.settings.seed, index);
+            let (frame, ahead) = rayon::join(gather, || {
+                let t = Instant::now();
+                let (vpls, stats) = sampler.sample(scene, accel, camera, m, next_seed);
+                Ahead { frame_index: index, vpls, stats, time: t.elapsed() }
+            });
+            self.ahead = Some(ahead);
+            frame
+        } else {
+            gather()
+        };
         self.frame_index += 1;
 
         let t = Instant::now();
@@ -347,7 +413,16 @@ impl Session {
         // (The image leaves with the outcome; the frame loop hands it back, `Session::recycle`.)
         let (image, stats) = (std::mem::take(&mut frame.image), std::mem::take(&mut frame.stats));
         self.spare = frame.into_spare();
-        FrameOutcome { image, stats, accumulate_time, motion, vpls_gathered, vpls_reused, non_finite }
+        FrameOutcome {
+            image,
+            stats,
+            accumulate_time,
+            motion,
+            vpls_gathered,
+            vpls_reused,
+            non_finite,
+            vpls_ahead: overlapped,
+        }
     }
 }
 
@@ -404,10 +479,8 @@ mod tests {
             sampler: VplSamplerArg::Sir,
             max_depth: 8,
             frame: FrameSettings { vpls: 32, ..FrameSettings::interactive() },
-            seed: 0,
-            fresh_chains: false,
-            reuse_frames: 4,
             gbuffer_frames: 3,
+            ..Default::default()
         };
         let mut s = Session::new(scene, accel, camera.clone(), settings);
         let reused = |s: &mut Session| {

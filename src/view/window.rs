@@ -70,6 +70,7 @@ struct App {
     last_vpls: (usize, usize),
     last_acceptance: Option<f64>,
     last_gbuffer_held: bool,
+    last_vpls_ahead: bool,
     error: Option<ViewError>,
     done: bool,
 }
@@ -111,6 +112,7 @@ pub fn run(
         last_vpls: (0, 0),
         last_acceptance: None,
         last_gbuffer_held: false,
+        last_vpls_ahead: false,
         error: None,
         done: false,
     };
@@ -270,6 +272,7 @@ impl App {
         self.last_vpls = (report.vpls, report.vpls_reused);
         self.last_acceptance = report.acceptance;
         self.last_gbuffer_held = report.gbuffer_held;
+        self.last_vpls_ahead = report.vpls_ahead;
         if self.status.as_ref().is_some_and(|(_, t)| t.elapsed() > STATUS_TIME) {
             self.status = None;
         }
@@ -301,6 +304,7 @@ impl App {
                 rays_per_second: self.rays_per_second,
                 acceptance: self.last_acceptance,
                 gbuffer_held: self.last_gbuffer_held,
+                vpls_ahead: self.last_vpls_ahead,
                 accumulated: self.fl.session.accumulated(),
                 render_size: (rw, rh),
                 status: self.status.as_ref().map(|(s, _)| s.as_str()),
