@@ -263,8 +263,8 @@ fn vpls_sampled_during_the_previous_gather_are_the_vpls_the_frame_would_sample()
             let out = success(&mirage(&args));
             (out.lines().last().unwrap().to_string(), recorded(dir, 6))
         };
-        let (ahead, with) = frames(&a, &[]);
-        let (serial, without) = frames(&b, &["--no-overlap"]);
+        let (ahead, with) = frames(&a, &["--vpls-ahead", "always"]);
+        let (serial, without) = frames(&b, &["--vpls-ahead", "never"]);
         assert!(ahead.contains("VPLs of 4 frames sampled during the previous gather"), "{ahead}");
         assert!(!serial.contains("previous gather"), "{serial}");
         assert!(with == without, "{sampler}: frames differ with VPLs sampled ahead");
@@ -286,8 +286,8 @@ fn vpls_sampled_during_the_previous_gather_are_the_vpls_the_frame_would_sample()
         let out = success(&mirage(&args));
         (out.lines().last().unwrap().to_string(), recorded(&rec, 6))
     };
-    let (ahead, with) = frames("ahead", &[]);
-    let (_, without) = frames("serial", &["--no-overlap"]);
+    let (ahead, with) = frames("ahead", &["--vpls-ahead", "always"]);
+    let (_, without) = frames("serial", &["--vpls-ahead", "never"]);
     // Frame 2 takes VPLs sampled during frame 1; those sampled during frame 2 are dropped at
     // the move, and frame 4 (still again) samples ahead for frame 5.
     assert!(ahead.contains("VPLs of 2 frames sampled during the previous gather"), "{ahead}");

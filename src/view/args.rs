@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 use super::error::ViewError;
 use super::path::CameraPath;
 use super::present::ToneCurve;
-use super::session::SessionSettings;
+use super::session::{Ahead, SessionSettings};
 use crate::options::{CameraArgs, GatherArgs, VplSamplerArg};
 
 /// The samplers `mirage view` starts with by preference: the first one built into this binary
@@ -109,12 +109,12 @@ pub struct ViewArgs {
     /// them the jitter moves every K frames. 1 traces every frame.
     #[arg(long, value_name = "K", default_value_t = 4)]
     pub gbuffer_frames: u32,
-    /// Sample each frame's VPLs only when the frame starts. By default, while the camera stands
-    /// still, the next frame's VPLs are sampled during this frame's gather, on the cores the
-    /// gather leaves idle (the same VPLs: same seed, same sampler state); the stage times then
-    /// overlap and no longer add up to the frame time.
-    #[arg(long)]
-    pub no_overlap: bool,
+    /// While the camera stands still, sample the next frame's VPLs during this frame's gather,
+    /// on the cores the gather leaves idle (the same VPLs: same seed, same sampler state); the
+    /// stage times then overlap and no longer add up to the frame time. auto: when the sampler
+    /// takes 1 ms or more (MIR, sir-cdf, bir); never: each frame samples its VPLs when it starts.
+    #[arg(long, value_enum, value_name = "WHEN", default_value_t = Ahead::Auto)]
+    pub vpls_ahead: Ahead,
     /// Headless, still camera: print the relMSE of the accumulated image against this EXR
     /// after 1, 2, 4, 8… frames.
     #[arg(long, value_name = "REF.exr", requires = "headless", conflicts_with = "camera_path")]
@@ -218,7 +218,7 @@ impl ViewArgs {
                 fresh_chains: self.fresh_chains,
                 reuse_frames: self.vpl_reuse,
                 gbuffer_frames: self.gbuffer_frames,
-                overlap: !self.no_overlap,
+                ahead: self.vpls_ahead,
             },
             scale: self.scale,
             curve: self.exposure.map_or(ToneCurve::Reinhard, ToneCurve::Exposure),

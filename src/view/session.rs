@@ -26,9 +26,10 @@
 //! it stops each take a new position, so the edges clean up as quickly as without holding).
 //!
 //! While the camera stands still, the next frame's VPLs are sampled during this frame's gather
-//! ([`SessionSettings::overlap`]): both run at once on the thread pool, so the cores that one
-//! leaves idle at its ends (the gather's last rows, the chains' and the normalisation's last
-//! tasks) work on the other. They are sampled with the seed and the sampler state the next frame
+//! ([`SessionSettings::overlap`]) when the sampler takes long enough to matter
+//! ([`AHEAD_MIN_SAMPLING`]: the Metropolis samplers, sir-cdf, bir): both run at once on the
+//! thread pool, so the cores that one leaves idle at its ends (the gather's last rows, the
+//! chains' and the normalisation's last tasks) work on the other. They are sampled with the seed and the sampler state the next frame
 //! would sample them with, so they are the same VPLs and the frames the same pixels (tested).
 //! A change before that frame (the camera moves, the settings or the sampler change) drops
 //! them, and the frame samples its own; a Metropolis chain has then advanced one run further,
@@ -52,6 +53,10 @@ use crate::vpl::{SamplerStats, VplSampler, VplSet};
 pub const JUMP_DISTANCE: f32 = 0.1;
 /// A per-frame turn of the view direction beyond this angle (degrees) is a jump.
 pub const JUMP_ANGLE_DEG: f32 = 15.0;
+/// VPLs are sampled ahead only for a sampler that took at least this long on the current
+/// frame: a cheaper one (SIR, 0.1–0.2 ms) has nothing to hide behind the gather, and sampling it
+/// ahead measured slower on Sponza (module doc).
+pub const AHEAD_MIN_SAMPLING: Duration = Duration::from_millis(1);
 /// Stream tag of frame seeds.
 const TAG_VIEW_FRAME: u64 = 0x5649_4557;
 
@@ -131,9 +136,21 @@ pub struct SessionSettings {
     /// While the camera stands still, trace the G-buffer every this many frames and gather the
     /// frames in between from it (1: trace every frame).
     pub gbuffer_frames: u32,
-    /// While the camera stands still, sample the next frame's VPLs during this frame's gather
-    /// (module doc).
-    pub overlap: bool,
+    /// While the camera stands still, when to sample the next frame's VPLs during this frame's
+    /// gather (module doc).
+    pub ahead: Ahead,
+}
+
+/// When a still camera's next VPLs are sampled during the current frame's gather.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Ahead {
+    /// When the sampler took at least [`AHEAD_MIN_SAMPLING`] on the current frame.
+    #[default]
+    Auto,
+    /// Always.
+    Always,
+    /// Never: each frame samples its VPLs when it starts (stage times add up to the frame).
+    Never,
 }
 
 impl Default for SessionSettings {
@@ -147,7 +164,7 @@ impl Default for SessionSettings {
             fresh_chains: false,
             reuse_frames: 4,
             gbuffer_frames: 4,
-            overlap: true,
+            ahead: Ahead::Auto,
         }
     }
 }
@@ -189,11 +206,11 @@ pub struct Session {
     mean: Vec<Vec3>,
     accumulated: u32,
     /// The next frame's VPLs, sampled during this frame's gather (still camera).
-    ahead: Option<Ahead>,
+    ahead: Option<SampledAhead>,
 }
 
 /// VPLs sampled ahead for frame `frame_index`, the sampler's report on them and the time it took.
-struct Ahead {
+struct SampledAhead {
     frame_index: u64,
     vpls: VplSet,
     stats: SamplerStats,
@@ -367,19 +384,24 @@ impl Session {
             sequence: (self.accumulated > 0)
                 .then(|| JitterSequence { seed: self.settings.seed, index: jitter_index(self.accumulated, k) }),
         };
+        let sample_ahead = match self.settings.ahead {
+            Ahead::Auto => stats.sampler.time >= AHEAD_MIN_SAMPLING,
+            Ahead::Always => true,
+            Ahead::Never => false,
+        };
         let spare = std::mem::take(&mut self.spare);
         let (scene, accel, camera, sampler) = (&self.scene, &self.accel, &self.camera, &mut self.sampler);
         let gather = || frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, rays);
         // A still camera is likely still at the next frame: its VPLs (m new ones, as a still
         // frame takes) are sampled beside this gather, with the seed and the sampler state the
         // next frame would sample them with, so the same VPLs.
-        let mut frame = if self.settings.overlap && !fresh && motion == Motion::Still {
+        let mut frame = if sample_ahead && !fresh && motion == Motion::Still {
             let index = self.frame_index + 1;
             let next_seed = frame_seed(self.settings.seed, index);
             let (frame, ahead) = rayon::join(gather, || {
                 let t = Instant::now();
                 let (vpls, stats) = sampler.sample(scene, accel, camera, m, next_seed);
-                Ahead { frame_index: index, vpls, stats, time: t.elapsed() }
+                SampledAhead { frame_index: index, vpls, stats, time: t.elapsed() }
             });
             self.ahead = Some(ahead);
             frame
