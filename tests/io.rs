@@ -15,11 +15,12 @@ use mirage::scene::{CameraSettings, Scene};
 // ---------------------------------------------------------------------------------------------
 // Helpers: temporary directories, base64, PNG and glTF / GLB writers.
 
-/// A fresh directory under the system temp dir for one test.
+/// A fresh directory for one test, under cargo's temporary directory for integration tests
+/// (inside `target/`, replaced on the next run: nothing is left in the system's temp dir).
 fn temp_dir(test: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let dir = std::env::temp_dir().join("mirage-io-tests").join(format!("{test}-{}-{n}", std::process::id()));
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("io").join(format!("{test}-{n}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

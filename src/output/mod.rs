@@ -112,5 +112,6 @@ mod tests {
         assert_eq!(read_exr(&path).unwrap(), img);
         write_png(&dir.join("a.png"), &img, Tonemap::Reinhard).unwrap();
         assert!(read_exr(&dir.join("missing.exr")).unwrap_err().to_string().contains("missing.exr: file not found"));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
