@@ -26,11 +26,12 @@
 //! it stops each take a new position, so the edges clean up as quickly as without holding).
 //!
 //! While the camera stands still, the next frame's VPLs are sampled during this frame's gather
-//! ([`SessionSettings::overlap`]) when the sampler takes long enough to matter
+//! ([`SessionSettings::ahead`]) when the sampler takes long enough to matter
 //! ([`AHEAD_MIN_SAMPLING`]: the Metropolis samplers, sir-cdf, bir): both run at once on the
 //! thread pool, so the cores that one leaves idle at its ends (the gather's last rows, the
-//! chains' and the normalisation's last tasks) work on the other. They are sampled with the seed and the sampler state the next frame
-//! would sample them with, so they are the same VPLs and the frames the same pixels (tested).
+//! chains' and the normalisation's last tasks) work on the other. They are sampled with the
+//! seed and the sampler state the next frame would sample them with, so they are the same VPLs
+//! and the frames the same pixels (tested).
 //! A change before that frame (the camera moves, the settings or the sampler change) drops
 //! them, and the frame samples its own; a Metropolis chain has then advanced one run further,
 //! which changes which VPLs follow but not what they estimate.
