@@ -38,7 +38,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::cdf::light_cdf;
-use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample};
+use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample, Spare};
 use super::set::{Vpl, VplSet};
 use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
@@ -327,6 +327,7 @@ fn run_chain<K: MutationKernel>(
     let (mut proposed, mut accepted) = (0u64, 0u64);
     let mut truncated = false;
     let mut n = 0u64;
+    let mut spare = Spare::default();
     loop {
         match locations.last_mut() {
             Some((s, k)) if s.vpl.position == x.vpl.position && s.vpl.normal == x.vpl.normal => *k += 1,
@@ -342,7 +343,7 @@ fn run_chain<K: MutationKernel>(
             truncated = n >= max_states && locations.len() < m;
             break;
         }
-        let (next, acc) = step(kernel, ctx, chain, &x, &mut rng, &mut rays);
+        let (next, acc) = step(kernel, ctx, chain, x, &mut rng, &mut rays, &mut spare);
         proposed += 1;
         accepted += acc as u64;
         x = next;
@@ -352,37 +353,51 @@ fn run_chain<K: MutationKernel>(
 }
 
 /// One MH or MTMH transition from `x`; returns the next state and whether a move was accepted.
+/// States it drops go back to `spare`, whose allocations its proposals build into.
 pub fn step<K: MutationKernel>(
     kernel: &K,
     ctx: &Context,
     chain: Chain,
-    x: &PathState,
+    x: PathState,
     rng: &mut Pcg32,
     stats: &mut RayStats,
+    spare: &mut Spare,
 ) -> (PathState, bool) {
     match chain {
         Chain::Mh => {
-            let p = kernel.propose(ctx, x, rng, stats);
-            let Some(y) = p.state else { return (x.clone(), false) };
-            let log_a = y.log_target + kernel.log_g(ctx, x, &y) - x.log_target - p.log_g;
-            if log_a >= 0.0 || rng.next_f64().ln() < log_a { (y, true) } else { (x.clone(), false) }
+            let p = kernel.propose(ctx, &x, rng, stats, spare);
+            let Some(y) = p.state else { return (x, false) };
+            let log_a = y.log_target + kernel.log_g(ctx, &x, &y) - x.log_target - p.log_g;
+            if log_a >= 0.0 || rng.next_f64().ln() < log_a {
+                spare.recycle(x);
+                (y, true)
+            } else {
+                spare.recycle(y);
+                (x, false)
+            }
         }
         Chain::Mtmh(p) => {
             // Step 1–2: p candidates from g(·|x), one chosen ∝ w(x, y) = π(y) / g(y|x).
-            let ys: Vec<(PathState, f64)> = (0..p.max(1))
-                .filter_map(|_| {
-                    let pr = kernel.propose(ctx, x, rng, stats);
-                    pr.state.map(|y| {
-                        let lw = y.log_target - pr.log_g;
-                        (y, lw)
-                    })
-                })
-                .filter(|(_, lw)| lw.is_finite())
-                .collect();
-            if ys.is_empty() {
-                return (x.clone(), false);
+            let mut ys = std::mem::take(&mut spare.candidates);
+            ys.clear();
+            for _ in 0..p.max(1) {
+                let pr = kernel.propose(ctx, &x, rng, stats, spare);
+                if let Some(y) = pr.state {
+                    let lw = y.log_target - pr.log_g;
+                    if lw.is_finite() {
+                        ys.push((y, lw));
+                    } else {
+                        spare.recycle(y);
+                    }
+                }
             }
-            let lws: Vec<f64> = ys.iter().map(|(_, lw)| *lw).collect();
+            if ys.is_empty() {
+                spare.candidates = ys;
+                return (x, false);
+            }
+            let mut lws = std::mem::take(&mut spare.weights);
+            lws.clear();
+            lws.extend(ys.iter().map(|(_, lw)| *lw));
             let num = log_sum_exp(&lws);
             // Choose j ∝ w, with weights normalised in log space (no overflow).
             let mut pick = rng.next_f64();
@@ -395,20 +410,36 @@ pub fn step<K: MutationKernel>(
                 }
                 pick -= w;
             }
-            let yj = &ys[j].0;
             // Step 3: p − 1 reference points from g(·|y_j), plus x itself.
-            let mut refs: Vec<f64> = (0..p.max(1) - 1)
-                .filter_map(|_| {
-                    let pr = kernel.propose(ctx, yj, rng, stats);
-                    pr.state.map(|z| z.log_target - pr.log_g)
-                })
-                .filter(|lw| lw.is_finite())
-                .collect();
-            refs.push(x.log_target - kernel.log_g(ctx, x, yj));
+            let mut refs = std::mem::take(&mut spare.references);
+            refs.clear();
+            let yj = &ys[j].0;
+            for _ in 0..p.max(1) - 1 {
+                let pr = kernel.propose(ctx, yj, rng, stats, spare);
+                if let Some(z) = pr.state {
+                    let lw = z.log_target - pr.log_g;
+                    spare.recycle(z);
+                    if lw.is_finite() {
+                        refs.push(lw);
+                    }
+                }
+            }
+            refs.push(x.log_target - kernel.log_g(ctx, &x, yj));
             // Step 4–5: generalised ratio.
             let den = log_sum_exp(&refs);
             let log_r = num - den;
-            if log_r >= 0.0 || rng.next_f64().ln() < log_r { (yj.clone(), true) } else { (x.clone(), false) }
+            let next = if log_r >= 0.0 || rng.next_f64().ln() < log_r {
+                let (y, _) = ys.swap_remove(j);
+                spare.recycle(x);
+                (y, true)
+            } else {
+                (x, false)
+            };
+            for (y, _) in ys.drain(..) {
+                spare.recycle(y);
+            }
+            (spare.candidates, spare.weights, spare.references) = (ys, lws, refs);
+            next
         }
     }
 }
