@@ -145,10 +145,10 @@ pub struct SessionSettings {
 /// When a still camera's next VPLs are sampled during the current frame's gather.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Ahead {
-    /// When the sampler took at least [`AHEAD_MIN_SAMPLING`] on the current frame.
+    /// When the sampler took 1 ms or more on the current frame (`AHEAD_MIN_SAMPLING`).
     #[default]
     Auto,
-    /// Always.
+    /// Whatever the sampler's time.
     Always,
     /// Never: each frame samples its VPLs when it starts (stage times add up to the frame).
     Never,
