@@ -269,6 +269,11 @@ fn vpls_sampled_during_the_previous_gather_are_the_vpls_the_frame_would_sample()
         assert!(!serial.contains("previous gather"), "{serial}");
         assert!(with == without, "{sampler}: frames differ with VPLs sampled ahead");
     }
+    // By default only a sampler that takes a millisecond or more is sampled ahead: SIR's 64
+    // VPLs take microseconds.
+    let dir = tmp("ahead-auto-sir");
+    let out = success(&run(&headless(&["--frames", "6", "--record", dir.to_str().unwrap()])));
+    assert!(!out.lines().last().unwrap().contains("previous gather"), "{out}");
     // The camera moves after three still frames: the VPLs sampled ahead for the old view are
     // dropped and the frame samples its own. sir-cdf chooses lights by their share of the
     // image, so its VPLs depend on the view; it keeps no state between frames, so dropping

@@ -154,6 +154,17 @@ pub enum Ahead {
     Never,
 }
 
+impl Ahead {
+    /// Whether to sample ahead after a frame whose sampler took `sampler_time`.
+    pub fn applies(self, sampler_time: Duration) -> bool {
+        match self {
+            Ahead::Auto => sampler_time >= AHEAD_MIN_SAMPLING,
+            Ahead::Always => true,
+            Ahead::Never => false,
+        }
+    }
+}
+
 impl Default for SessionSettings {
     /// `mirage view`'s defaults (its flags' defaults, tested there).
     fn default() -> Self {
@@ -385,11 +396,7 @@ impl Session {
             sequence: (self.accumulated > 0)
                 .then(|| JitterSequence { seed: self.settings.seed, index: jitter_index(self.accumulated, k) }),
         };
-        let sample_ahead = match self.settings.ahead {
-            Ahead::Auto => stats.sampler.time >= AHEAD_MIN_SAMPLING,
-            Ahead::Always => true,
-            Ahead::Never => false,
-        };
+        let sample_ahead = self.settings.ahead.applies(stats.sampler.time);
         let spare = std::mem::take(&mut self.spare);
         let (scene, accel, camera, sampler) = (&self.scene, &self.accel, &self.camera, &mut self.sampler);
         let gather = || frame::gather_frame_reusing(scene, accel, camera, vpls, &settings, seed, stats, spare, rays);
@@ -527,6 +534,14 @@ mod tests {
             assert_eq!(reused(&mut s), (false, false), "still frame {k} after a move");
         }
         assert_eq!(reused(&mut s), (true, true));
+    }
+
+    #[test]
+    fn auto_samples_ahead_only_for_samplers_that_take_a_millisecond_or_more() {
+        let ms = Duration::from_micros;
+        assert!(!Ahead::Auto.applies(ms(200)) && !Ahead::Auto.applies(ms(999)));
+        assert!(Ahead::Auto.applies(ms(1000)) && Ahead::Auto.applies(ms(9000)));
+        assert!(Ahead::Always.applies(ms(0)) && !Ahead::Never.applies(ms(9000)));
     }
 
     #[test]
