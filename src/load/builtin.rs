@@ -11,8 +11,22 @@ use glam::{Mat3, Vec3, vec3};
 use super::desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, ScatterDesc, SceneDesc};
 
 /// Names of the built-in scenes, in the order of scenes/README.md.
-pub const NAMES: [&str; 7] =
-    ["cornell", "furnace", "ajar-door", "left-right", "direct-indirect", "light-box", "glass-sphere"];
+pub const NAMES: [&str; 10] = [
+    "cornell",
+    "furnace",
+    "ajar-door",
+    "left-right",
+    "direct-indirect",
+    "light-box",
+    "glass-sphere",
+    "ajar-door-thick",
+    "light-box-thick",
+    "deep-shaft",
+];
+
+/// The hard-visibility scenes: walls with real thickness (openings are tunnels), openings of a
+/// few centimetres in metre-scale rooms, a light at the top of a deep shaft.
+pub const HARD_NAMES: [&str; 3] = ["ajar-door-thick", "light-box-thick", "deep-shaft"];
 
 /// The built-in scene called `name`, if there is one.
 pub fn by_name(name: &str) -> Option<SceneDesc> {
@@ -24,6 +38,9 @@ pub fn by_name(name: &str) -> Option<SceneDesc> {
         "direct-indirect" => direct_indirect(),
         "light-box" => light_box(),
         "glass-sphere" => glass_sphere(),
+        "ajar-door-thick" => ajar_door_thick(),
+        "light-box-thick" => light_box_thick(),
+        "deep-shaft" => deep_shaft(),
         "sphere-field" => sphere_field(28),
         _ => return None,
     })
@@ -140,6 +157,21 @@ pub fn rect_with_holes(origin: Vec3, u: Vec3, v: Vec3, width: f32, height: f32, 
             let p = |a: f32, b: f32| origin + u * a + v * b;
             tris.extend(quad(p(us[i], vs[j]), p(us[i + 1], vs[j]), p(us[i + 1], vs[j + 1]), p(us[i], vs[j + 1])));
         }
+    }
+    tris
+}
+
+/// The four sides of the tunnel that each hole (u0, v0, u1, v1) cuts through a wall of
+/// thickness `t`: the wall's face spans `u`, `v` from `origin`, and its other face lies at
+/// `origin + n * t`.
+pub fn tunnels(origin: Vec3, u: Vec3, v: Vec3, n: Vec3, t: f32, holes: &[[f32; 4]]) -> Vec<[Vec3; 3]> {
+    let p = |a: f32, b: f32, c: f32| origin + u * a + v * b + n * c;
+    let mut tris = Vec::new();
+    for &[u0, v0, u1, v1] in holes {
+        tris.extend(quad(p(u0, v0, 0.0), p(u0, v1, 0.0), p(u0, v1, t), p(u0, v0, t)));
+        tris.extend(quad(p(u1, v0, 0.0), p(u1, v0, t), p(u1, v1, t), p(u1, v1, 0.0)));
+        tris.extend(quad(p(u0, v0, 0.0), p(u0, v0, t), p(u1, v0, t), p(u1, v0, 0.0)));
+        tris.extend(quad(p(u0, v1, 0.0), p(u1, v1, 0.0), p(u1, v1, t), p(u0, v1, t)));
     }
     tris
 }
@@ -486,6 +518,125 @@ pub fn light_box() -> SceneDesc {
     let y = 0.98;
     b.triangles("lamp", light, &quad(vec3(-0.2, y, -0.2), vec3(0.2, y, -0.2), vec3(0.2, y, 0.2), vec3(-0.2, y, 0.2)));
     b.camera(vec3(1.6, 2.2, 2.3), vec3(-0.3, 0.5, -0.5), 60.0, 256, 192);
+    b.finish()
+}
+
+/// `ajar-door` with real walls: the dividing wall is 15 cm thick, so the doorway is a tunnel,
+/// and the door (a 4 cm slab larger than the doorway, on the camera's side) is opened 2°: light
+/// from the far room crosses the tunnel and leaves it through a wedge between door and wall at
+/// most 3.6 cm wide.
+pub fn ajar_door_thick() -> SceneDesc {
+    let mut b = Builder::new("ajar-door-thick");
+    let wall = b.diffuse("wall", Vec3::splat(0.75));
+    let floor = b.diffuse("floor", vec3(0.6, 0.5, 0.4));
+    let door = b.diffuse("door", vec3(0.5, 0.3, 0.2));
+    let light = b.emitter("light", Vec3::splat(60.0));
+    let (h, t, xb) = (2.5f32, 0.15f32, 7.15f32);
+    let (dz0, dz1, dh) = (1.5f32, 2.5f32, 2.0f32);
+    let mut walls = Vec::new();
+    let mut floors = Vec::new();
+    // Room A (camera) x in [0, 4], the wall x in [4, 4.15], room B (light) x in [4.15, 7.15].
+    floors.extend(quad(vec3(0.0, 0.0, 0.0), vec3(0.0, 0.0, 4.0), vec3(xb, 0.0, 4.0), vec3(xb, 0.0, 0.0)));
+    walls.extend(quad(vec3(0.0, h, 0.0), vec3(xb, h, 0.0), vec3(xb, h, 4.0), vec3(0.0, h, 4.0)));
+    walls.extend(quad(vec3(0.0, 0.0, 0.0), vec3(xb, 0.0, 0.0), vec3(xb, h, 0.0), vec3(0.0, h, 0.0)));
+    walls.extend(quad(vec3(0.0, 0.0, 4.0), vec3(0.0, h, 4.0), vec3(xb, h, 4.0), vec3(xb, 0.0, 4.0)));
+    walls.extend(quad(vec3(0.0, 0.0, 0.0), vec3(0.0, h, 0.0), vec3(0.0, h, 4.0), vec3(0.0, 0.0, 4.0)));
+    walls.extend(quad(vec3(xb, 0.0, 0.0), vec3(xb, 0.0, 4.0), vec3(xb, h, 4.0), vec3(xb, h, 0.0)));
+    // The dividing wall's two faces and its doorway tunnel (z in [1.5, 2.5], y in [0, 2]); the
+    // tunnel's floor is the floor.
+    let doorway = [[dz0, 0.0, dz1, dh]];
+    for x in [4.0, 4.0 + t] {
+        walls.extend(rect_with_holes(vec3(x, 0.0, 0.0), Vec3::Z, Vec3::Y, 4.0, h, &doorway));
+    }
+    let mut tunnel = tunnels(vec3(4.0, 0.0, 0.0), Vec3::Z, Vec3::Y, Vec3::X, t, &doorway);
+    tunnel.drain(4..6);
+    walls.extend(tunnel);
+    b.triangles("walls", wall, &walls);
+    b.triangles("floors", floor, &floors);
+    // The door covers the doorway with 2–3 cm to spare, hinged on the wall face at z = 1.48,
+    // swung 2° into room A.
+    let mut slab = cuboid(vec3(3.96, 0.0, dz0 - 0.02), vec3(4.0, dh + 0.03, dz1 + 0.02), false);
+    rotate_y(&mut slab, vec3(4.0, 0.0, dz0 - 0.02), -2.0 * PI / 180.0);
+    b.triangles("door", door, &slab);
+    // Ceiling light in room B, facing down, away from the door.
+    let y = h - 0.01;
+    b.triangles("light", light, &quad(vec3(6.0, y, 0.6), vec3(6.8, y, 0.6), vec3(6.8, y, 1.4), vec3(6.0, y, 1.4)));
+    b.camera(vec3(0.6, 1.5, 3.5), vec3(4.0, 0.9, 1.8), 60.0, 256, 192);
+    b.finish()
+}
+
+/// `light-box` with real walls: the box's walls are 6 cm thick, and the only way out is one
+/// 5 cm square hole (a 6 cm tunnel) near the top of each side; the lamp under the lid faces down.
+pub fn light_box_thick() -> SceneDesc {
+    let mut b = Builder::new("light-box-thick");
+    let wall = b.diffuse("wall", Vec3::splat(0.7));
+    let floor = b.diffuse("floor", vec3(0.5, 0.45, 0.4));
+    let boxm = b.diffuse("box", Vec3::splat(0.6));
+    let light = b.emitter("lamp", Vec3::splat(80.0));
+    let mut room = cuboid(vec3(-2.5, 0.0, -2.5), vec3(2.5, 3.0, 2.5), true);
+    let floor_tris: Vec<[Vec3; 3]> = room.drain(4..6).collect();
+    b.triangles("room", wall, &room);
+    b.triangles("floor", floor, &floor_tris);
+    // Outer box [-0.5, 0.5] × [0, 1] × [-0.5, 0.5], cavity 6 cm inside it.
+    let (s, t) = (1.0f32, 0.06f32);
+    let (lo, hi) = (vec3(-0.5, 0.0, -0.5), vec3(0.5, 1.0, 0.5));
+    let hole = [0.475, 0.80, 0.525, 0.85];
+    let inner = [hole[0] - t, hole[1] - t, hole[2] - t, hole[3] - t];
+    let mut shell = Vec::new();
+    // Each side: (outer origin, u, v, inward normal).
+    let sides = [
+        (vec3(lo.x, lo.y, lo.z), Vec3::X, Vec3::Y, Vec3::Z),
+        (vec3(lo.x, lo.y, hi.z), Vec3::X, Vec3::Y, -Vec3::Z),
+        (vec3(lo.x, lo.y, lo.z), Vec3::Z, Vec3::Y, Vec3::X),
+        (vec3(hi.x, lo.y, lo.z), Vec3::Z, Vec3::Y, -Vec3::X),
+    ];
+    for (o, u, v, n) in sides {
+        shell.extend(rect_with_holes(o, u, v, s, s, &[hole]));
+        shell.extend(rect_with_holes(o + n * t + (u + v) * t, u, v, s - 2.0 * t, s - 2.0 * t, &[inner]));
+        shell.extend(tunnels(o, u, v, n, t, &[hole]));
+    }
+    // Lid (outer and inner face) and the cavity's floor; the box stands on the room's floor.
+    shell.extend(rect_with_holes(vec3(lo.x, hi.y, lo.z), Vec3::X, Vec3::Z, s, s, &[]));
+    let (ilo, side) = (lo + Vec3::splat(t), s - 2.0 * t);
+    shell.extend(rect_with_holes(vec3(ilo.x, hi.y - t, ilo.z), Vec3::X, Vec3::Z, side, side, &[]));
+    shell.extend(rect_with_holes(ilo, Vec3::X, Vec3::Z, side, side, &[]));
+    b.triangles("box", boxm, &shell);
+    // Lamp just under the inner lid, facing down into the box.
+    let y = hi.y - t - 0.01;
+    b.triangles("lamp", light, &quad(vec3(-0.2, y, -0.2), vec3(0.2, y, -0.2), vec3(0.2, y, 0.2), vec3(-0.2, y, 0.2)));
+    b.camera(vec3(1.6, 2.2, 2.3), vec3(-0.3, 0.5, -0.5), 60.0, 256, 192);
+    b.finish()
+}
+
+/// A room lit only by a small lamp (20 cm square, facing down) at the top of a 30 cm square
+/// shaft that rises 2.7 m above the ceiling; the camera looks down and never sees the ceiling. The floor under
+/// the shaft is lit directly (about a third of the image's light); the rest bounced.
+pub fn deep_shaft() -> SceneDesc {
+    let mut b = Builder::new("deep-shaft");
+    let wall = b.diffuse("wall", Vec3::splat(0.7));
+    let floor = b.diffuse("floor", vec3(0.55, 0.5, 0.45));
+    let light = b.emitter("lamp", Vec3::splat(400.0));
+    // Room x in [-2, 2], y in [0, 3], z in [-3, 3]; the shaft x in [0.45, 0.75], z in [-1.35, -1.05].
+    let (h, top) = (3.0f32, 5.7f32);
+    let (sx, sz, w) = (0.45f32, -1.35f32, 0.3f32);
+    let mut room = cuboid(vec3(-2.0, 0.0, -3.0), vec3(2.0, h, 3.0), true);
+    let floor_tris: Vec<[Vec3; 3]> = room.drain(4..6).collect();
+    room.drain(4..6); // the ceiling, rebuilt below with the shaft's opening
+    let hole = [[sx + 2.0, sz + 3.0, sx + w + 2.0, sz + w + 3.0]];
+    room.extend(rect_with_holes(vec3(-2.0, h, -3.0), Vec3::X, Vec3::Z, 4.0, 6.0, &hole));
+    // The shaft's four walls from the ceiling up to its top, closed by a cap.
+    room.extend(tunnels(vec3(sx, h, sz), Vec3::X, Vec3::Z, Vec3::Y, top - h, &[[0.0, 0.0, w, w]]));
+    room.extend(quad(vec3(sx, top, sz), vec3(sx + w, top, sz), vec3(sx + w, top, sz + w), vec3(sx, top, sz + w)));
+    b.triangles("room and shaft", wall, &room);
+    b.triangles("floor", floor, &floor_tris);
+    let y = top - 0.01;
+    let (a, c) = (0.05, w - 0.05);
+    b.triangles(
+        "lamp",
+        light,
+        &quad(vec3(sx + a, y, sz + a), vec3(sx + c, y, sz + a), vec3(sx + c, y, sz + c), vec3(sx + a, y, sz + c)),
+    );
+    b.camera(vec3(0.0, 1.6, 2.8), vec3(0.0, 0.3, -1.0), 55.0, 256, 192);
     b.finish()
 }
 
