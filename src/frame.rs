@@ -39,6 +39,12 @@ pub struct FrameSettings {
     pub min_distance: f32,
     /// Single rays or packets (and which shadow-ray grouping) in the G-buffer and gather.
     pub tracing: Tracing,
+    /// Compensate the clamp: a short residual path per pixel adds back, in expectation, what
+    /// the clamp removed ([`crate::gather::compensate`]).
+    pub compensate: bool,
+    /// Gather VPLs that light very few pixels of their interleave subset at every pixel
+    /// ([`Interleave::for_image`]): without it such VPLs show as bright 8×8 squares.
+    pub spread_small_vpls: bool,
 }
 
 impl FrameSettings {
@@ -58,12 +64,22 @@ impl FrameSettings {
             jitter: true,
             min_distance: 0.0,
             tracing: Tracing::default(),
+            compensate: false,
+            spread_small_vpls: true,
         }
     }
 
     /// Unbiased settings: no clamp, no filter.
     pub fn unbiased(vpls: usize) -> Self {
         FrameSettings { vpls, clamp: 0.0, filter: None, ..Self::interactive() }
+    }
+
+    /// Unbiased settings with finite variance: the gather clamped at the bound of MIR's chain
+    /// target ([`crate::vpl::mirpath::TARGET_CLAMP`]) and the clamp compensated, no filter.
+    /// The expectation is that of [`FrameSettings::unbiased`]; MIR's VPLs then bring, on
+    /// average, exactly the response their normalisation measured (see the MIR module doc).
+    pub fn compensated(vpls: usize) -> Self {
+        FrameSettings { clamp: crate::vpl::mirpath::TARGET_CLAMP, compensate: true, ..Self::unbiased(vpls) }
     }
 }
 
@@ -217,7 +233,11 @@ pub fn gather_frame_reusing(
     camera_rays: CameraRays,
 ) -> Frame {
     let (n, m) = settings.interleave;
-    let inter = Interleave::new(&vpls, n, m);
+    let inter = if settings.spread_small_vpls {
+        Interleave::for_image(&vpls, n, m, camera.pixel_count())
+    } else {
+        Interleave::new(&vpls, n, m)
+    };
     let filter = match settings.filter {
         Some((angle, depth)) if n * m > 1 => {
             Some(DiscontinuitySettings { n, m, max_normal_angle_deg: angle, max_relative_depth: depth })
@@ -242,6 +262,7 @@ pub fn gather_frame_reusing(
         interleave: &inter,
         g_max: g_bound(scene, settings.clamp),
         min_distance: settings.min_distance,
+        compensate: settings.compensate,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
         gbuffer: camera_rays.gbuffer,
         ratio_planes_on_reuse: recorded,

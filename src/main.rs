@@ -192,7 +192,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         let frames = out.spp.max(1) as f64;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
         println!(
-            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s), filter {:.1} ms; clamping removed {:.2} % of the gathered energy{}",
+            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s), filter {:.1} ms; clamping removed {:.2} % of the gathered energy, {}{}",
             out.spp,
             options.frame.vpls,
             options.vpl_sampler.build_with(&options.sampler).name(),
@@ -202,6 +202,14 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             fs.rays.shadow as f64 / shadow_s / 1e6,
             fs.filter_time.as_secs_f64() * 1e3 / frames,
             100.0 * fs.energy.removed_share(),
+            if options.frame.compensate && options.frame.clamp > 0.0 {
+                format!(
+                    "compensation added {:.2} % to the gathered light (its estimate of what the clamp removed, here and along its paths)",
+                    100.0 * fs.energy.recovered / fs.energy.kept.max(f64::MIN_POSITIVE)
+                )
+            } else {
+                "not compensated (biased: darker)".to_string()
+            },
             fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default()
         );
     }

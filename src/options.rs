@@ -77,12 +77,19 @@ pub struct GatherArgs {
     #[arg(long, value_parser = parse_interleave, default_value = "8x8")]
     pub interleave: (u32, u32),
     /// Bound on the VPL geometry term G, in units of 1/(scene bounds diagonal)²; 0 = no clamp
-    /// (unbiased, noisier near corners).
+    /// (unbiased with unbounded variance: splotches near corners; in mir mode behind slits,
+    /// light comes back only through rare VPLs). With --compensate on (the render default)
+    /// the clamp costs no bias.
     #[arg(long, default_value_t = 300.0, allow_hyphen_values = true)]
     pub clamp: f32,
     /// Do not apply the discontinuity buffer after the gather (in the viewer: start with it off).
     #[arg(long)]
     pub no_filter: bool,
+    /// Compensate the clamp (Kollig & Keller 2004): a short path from each pixel adds back, in
+    /// expectation, the light the clamp removed, so the image is unbiased at any --clamp.
+    /// Default: on for `render` and `converge`, off in the viewer (it costs frame time)
+    #[arg(long, value_enum)]
+    pub compensate: Option<Switch>,
     /// Ray tracing of the gather: 8-wide packets for primary rays and single shadow rays
     /// (default), shadow packets grouped by shared VPL or by shared pixel, or single rays
     /// everywhere. Same image; see benches/gather.rs.
@@ -121,8 +128,25 @@ impl GatherArgs {
             clamp: self.clamp,
             filter: if self.no_filter { None } else { Some((self.filter_angle, self.filter_depth)) },
             tracing: self.rays.into(),
+            compensate: self.compensate_or(false),
             ..crate::frame::FrameSettings::interactive()
         }
+    }
+}
+
+/// On or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+impl GatherArgs {
+    /// Whether the clamp is compensated, `default` when no --compensate was given.
+    pub fn compensate_or(&self, default: bool) -> bool {
+        self.compensate.map_or(default, |s| s == Switch::On)
     }
 }
 
@@ -285,8 +309,8 @@ impl CameraArgs {
 #[derive(Args, Clone, Debug)]
 pub struct RenderArgs {
     /// Scene file (.gltf, .glb, .obj) or the name of a built-in scene (cornell, furnace,
-    /// ajar-door, left-right, direct-indirect, light-box, glass-sphere). Default: the built-in
-    /// Cornell box.
+    /// ajar-door, left-right, direct-indirect, light-box, glass-sphere; the hard-visibility
+    /// ajar-door-thick, light-box-thick, deep-shaft). Default: the built-in Cornell box.
     pub scene: Option<String>,
     /// Rendering mode.
     #[arg(long, value_enum, default_value_t = Mode::Mir)]
@@ -473,7 +497,11 @@ impl RenderArgs {
                 light_cdf: self.light_cdf,
                 chains: self.chains,
             },
-            frame: crate::frame::FrameSettings { max_specular: 8, ..self.gather.frame_settings() },
+            frame: crate::frame::FrameSettings {
+                max_specular: 8,
+                compensate: self.gather.compensate_or(true),
+                ..self.gather.frame_settings()
+            },
         })
     }
 }

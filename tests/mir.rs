@@ -264,3 +264,85 @@ fn parallel_chains_give_the_same_vpls_on_one_and_two_threads() {
     assert!(one.iter().all(|(p, ..)| p.len() >= 3 * 16), "{:?}", one.iter().map(|r| r.0.len() / 3).collect::<Vec<_>>());
     assert_eq!(one, run(2));
 }
+
+/// Mean luminance of each batch image, its mean and standard error, median and range.
+fn seed_spread(e: &Estimate) -> (f64, f64, f64, f64, f64) {
+    let mut v: Vec<f64> = e.images.iter().map(|i| i.mean_luminance()).collect();
+    let k = v.len() as f64;
+    let m = v.iter().sum::<f64>() / k;
+    let se = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt();
+    v.sort_by(f64::total_cmp);
+    (m, se, v[v.len() / 2], v[0], v[v.len() - 1])
+}
+
+/// On the hard-visibility scenes (a slit in a thick wall, a lamp in a box with small tunnels,
+/// a lamp at the top of a deep shaft) MIR without a bias of its own — the gather clamped at
+/// the chain target's bound and compensated, no filter, no cap on VPL radiance — agrees with
+/// the path tracer: per 8×8 block (the block test) and in image mean within four standard
+/// errors of the difference, over 8 seeds, for MTMH and MH with both kernels. Before issue 19
+/// the slit scene's MIR mean was 0.61 of pt's (the clamped target missed the short
+/// connections next to the slit, and the radiance cap removed more); the bare clamp is checked
+/// to be darker there, so the test can see a missing 20 %. pt needs its 8 × 1536 spp: at 384
+/// its own heavy tail (light through the shaft is rare for camera paths too) put its mean 4–7 %
+/// below every MIR configuration on deep-shaft and failed the block test on pt's side.
+#[test]
+fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
+    for name in builtin::HARD_NAMES {
+        let (s, a) = scene(builtin::by_name(name).unwrap(), 32, 24);
+        let imgs: Vec<Image> = (0..8)
+            .map(|b| {
+                let st = OfflineSettings {
+                    budget: Budget::Samples(1536),
+                    seed: 70 + b,
+                    max_depth: 64,
+                    ..OfflineSettings::preview()
+                };
+                offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image()
+            })
+            .collect();
+        let reference = Estimate::from_batches(&imgs);
+        let (r, se_r, ..) = seed_spread(&reference);
+        let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::compensated(256) };
+        let run = |kind: VplSamplerArg, kernel: KernelArg, settings: &FrameSettings| {
+            let imgs: Vec<Image> = (0..8u64)
+                .map(|b| {
+                    let mut sampler = kind.build_with(&SamplerConfig { kernel, ..Default::default() });
+                    let acc = Accumulation { budget: Budget::Samples(16), seed: 31 + 1000 * b, aovs: false };
+                    let (out, _) =
+                        frame::render_progressive(&s, &a, sampler.as_mut(), settings, acc, &ProgressBar::hidden());
+                    let img = out.film.image();
+                    assert_eq!(img.non_finite_count(), 0, "{name}");
+                    img
+                })
+                .collect();
+            Estimate::from_batches(&imgs)
+        };
+        for (kind, kernel) in [
+            (VplSamplerArg::Mtmh, KernelArg::Bidir),
+            (VplSamplerArg::Mtmh, KernelArg::Pss),
+            (VplSamplerArg::Mh, KernelArg::Bidir),
+            (VplSamplerArg::Mh, KernelArg::Pss),
+        ] {
+            let e = run(kind, kernel, &settings);
+            let (m, se, med, lo, hi) = seed_spread(&e);
+            let z = (m - r) / (se * se + se_r * se_r).sqrt();
+            eprintln!(
+                "{name} {kind:?} {kernel:?}: mean/pt {:.3} ± {:.3} (median {:.3}, {:.3}–{:.3}), z = {z:.2}",
+                m / r,
+                se / r,
+                med / r,
+                lo / r,
+                hi / r
+            );
+            assert!(z.abs() < 4.0, "{name} {kind:?} {kernel:?}: image mean {m} vs pt {r} (z = {z:.2})");
+            assert_agree_blocks(&format!("{name}-compensated-{kind:?}-{kernel:?}-vs-pt"), &e, &reference, 8);
+        }
+        if name == "ajar-door-thick" {
+            let bare = run(VplSamplerArg::Mtmh, KernelArg::Bidir, &FrameSettings { compensate: false, ..settings });
+            let (m, se, ..) = seed_spread(&bare);
+            let z = (r - m) / (se * se + se_r * se_r).sqrt();
+            eprintln!("{name}: bare clamp mean/pt {:.3} ± {:.3}, z = {z:.2}", m / r, se / r);
+            assert!(z > 3.0, "{name}: without compensation MIR should be darker (z = {z:.2})");
+        }
+    }
+}

@@ -6,6 +6,18 @@
 //! a chain location), so splitting by group keeps each subset unbiased: subset k holds the
 //! groups g with g mod S = k and is scaled by G / (number of its groups), with S = min(n·m, G)
 //! subsets for G groups (pixels share subsets when there are fewer groups than tile pixels).
+//!
+//! A VPL that lights only a few pixels (MIR puts equal power in every VPL, so such a VPL is
+//! bright) would reach a handful of its subset's pixels, each scaled by the subset count: a
+//! grid of bright dots that the discontinuity buffer turns into bright 8×8 squares. When the
+//! set knows each VPL's footprint ([`VplSet::footprint`]), a group whose VPLs would each reach
+//! fewer than [`EVERYWHERE_PIXELS`] pixels of a subset is gathered by every pixel with weight
+//! 1 instead ([`Interleave::everywhere`]); the other groups are split as above. Each group is
+//! then either in one subset, scaled by G′ / (its subset's groups) with G′ the split groups, or
+//! in every pixel unscaled: the expectation is unchanged, and the cost of a spread VPL is
+//! bounded by that of an interleaved one (its lit pixels, fewer than the bound times S, take
+//! shadow rays), plus one unshadowed evaluation per pixel. At most an eighth of the groups are
+//! spread (those with the smallest footprints).
 
 use super::super::vpl::VplSet;
 
@@ -20,23 +32,83 @@ pub struct Interleave {
     pub subsets: Vec<Vec<u32>>,
     /// Scale of each subset's sum.
     pub scales: Vec<f32>,
+    /// VPLs every pixel gathers, unscaled (see the module doc).
+    pub everywhere: Vec<u32>,
 }
 
+/// A VPL that would light fewer pixels of its interleave subset than this is gathered by every
+/// pixel (module doc).
+pub const EVERYWHERE_PIXELS: f32 = 16.0;
+
 impl Interleave {
-    /// Splits `vpls` for an n×m pattern.
+    /// Splits `vpls` for an n×m pattern, none gathered everywhere.
     pub fn new(vpls: &VplSet, n: u32, m: u32) -> Self {
+        Self::split(vpls, n, m, &[])
+    }
+
+    /// Splits `vpls` for an n×m pattern over an image of `pixels` pixels, spreading the VPLs
+    /// with small footprints over every pixel (module doc).
+    pub fn for_image(vpls: &VplSet, n: u32, m: u32, pixels: usize) -> Self {
         let groups = vpls.groups.max(1) as usize;
-        let s = ((n * m) as usize).min(groups).max(1);
+        if vpls.footprint.len() != vpls.len() || n * m <= 1 {
+            return Self::new(vpls, n, m);
+        }
+        let s = ((n * m) as usize).min(groups) as f32;
+        // A group is spread when every VPL of it is small; its footprint is its largest one.
+        let mut small = vec![Some(0.0f32); groups];
+        for (i, &g) in vpls.group.iter().enumerate() {
+            let f = vpls.footprint[i];
+            let slot = &mut small[g as usize];
+            *slot = match *slot {
+                Some(a) if f * pixels as f32 / s < EVERYWHERE_PIXELS => Some(a.max(f)),
+                _ => None,
+            };
+        }
+        let mut spread: Vec<(f32, u32)> =
+            small.iter().enumerate().filter_map(|(g, f)| f.map(|f| (f, g as u32))).collect();
+        // Groups without VPLs keep Some(0) and are not in the set: drop them.
+        let present: Vec<bool> = {
+            let mut p = vec![false; groups];
+            vpls.group.iter().for_each(|&g| p[g as usize] = true);
+            p
+        };
+        spread.retain(|&(_, g)| present[g as usize]);
+        spread.sort_by(|a, b| a.0.total_cmp(&b.0));
+        spread.truncate(groups / 8);
+        let mut flagged = vec![false; groups];
+        spread.iter().for_each(|&(_, g)| flagged[g as usize] = true);
+        Self::split(vpls, n, m, &flagged)
+    }
+
+    /// Splits the groups not `flagged` into subsets; the flagged ones go everywhere.
+    fn split(vpls: &VplSet, n: u32, m: u32, flagged: &[bool]) -> Self {
+        let groups = vpls.groups.max(1) as usize;
+        let is_flagged = |g: usize| flagged.get(g).copied().unwrap_or(false);
+        // Rank of each split group among the split groups.
+        let mut rank = vec![0usize; groups];
+        let mut local = 0usize;
+        for (g, r) in rank.iter_mut().enumerate() {
+            if !is_flagged(g) {
+                *r = local;
+                local += 1;
+            }
+        }
+        let s = ((n * m) as usize).min(local).max(1);
         let mut subsets = vec![Vec::new(); s];
         let mut group_count = vec![0usize; s];
-        for g in 0..groups {
-            group_count[g % s] += 1;
+        for g in (0..groups).filter(|&g| !is_flagged(g)) {
+            group_count[rank[g] % s] += 1;
         }
+        let mut everywhere = Vec::new();
         for (i, &g) in vpls.group.iter().enumerate() {
-            subsets[g as usize % s].push(i as u32);
+            if is_flagged(g as usize) {
+                everywhere.push(i as u32);
+            } else {
+                subsets[rank[g as usize] % s].push(i as u32);
+            }
         }
-        let scales = group_count.iter().map(|&c| if c > 0 { groups as f32 / c as f32 } else { 0.0 }).collect();
-        Interleave { n, m, subsets, scales }
+        let scales = group_count.iter().map(|&c| if c > 0 { local as f32 / c as f32 } else { 0.0 }).collect();
+        Interleave { n, m, subsets, scales, everywhere }
     }
 
     /// The subset pixel (x, y) gathers.

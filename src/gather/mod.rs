@@ -2,6 +2,7 @@
 //! clamped contribution `L·f·G·V` (papers/002 §7.2; DESIGN §4). Reads a [`crate::vpl::VplSet`];
 //! never changes it.
 
+pub mod compensate;
 pub mod gbuffer;
 pub mod interleave;
 pub mod shade;
@@ -45,6 +46,8 @@ pub struct OnePass<'a> {
     pub g_max: f32,
     /// VPLs closer than this to a receiver are skipped.
     pub min_distance: f32,
+    /// Add the clamp compensation ([`compensate`]) when `g_max` is finite.
+    pub compensate: bool,
     /// Fill the discontinuity buffer's planes of this layout too (see [`Gathered::planes`]).
     pub planes: Option<PlaneLayout>,
     /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
@@ -189,12 +192,14 @@ pub fn trace_and_gather(
         interleave,
         g_max,
         min_distance,
+        compensate,
         planes: layout,
         gbuffer: use_gbuffer,
         ratio_planes_on_reuse,
     } = *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence, max_specular, tracing };
-    let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing);
+    let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing)
+        .compensating(compensate.then_some(seed));
     let (w, h) = (camera.width, camera.height);
     let Lent { gbuffer, light, planes, mut held } = lent;
     let band_len = (rays.band_rows() * w) as usize;
@@ -453,6 +458,7 @@ mod tests {
                     interleave: &inter,
                     g_max,
                     min_distance,
+                    compensate: false,
                     planes: Some(layout),
                     gbuffer: GBufferUse::Trace,
                     ratio_planes_on_reuse: false,
@@ -580,6 +586,7 @@ mod tests {
                     interleave: &inter,
                     g_max,
                     min_distance: 0.0,
+                    compensate: false,
                     planes: Some(layout),
                     gbuffer,
                     ratio_planes_on_reuse: false,

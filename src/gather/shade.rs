@@ -13,13 +13,12 @@ use crate::accel::ray_offset;
 use crate::accel::single::NO_OCCLUDER;
 use crate::bsdf::BsdfKind;
 use crate::color::luminance;
+use crate::sampling::IndependentSampler;
 use crate::scene::Scene;
 use crate::simd::{F4, F8, LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
 use crate::vpl::set::VplLobe;
-#[cfg(doc)]
-use crate::vpl::transfer::shadow_segment;
-use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, unshadowed};
+use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, shadow_segment, unshadowed};
 use crate::vpl::{TWO_SIDED, VplSet};
 use std::f32::consts::FRAC_1_PI;
 
@@ -30,6 +29,9 @@ pub struct GatherEnergy {
     pub kept: f64,
     /// Sum of the luminance the clamp removed.
     pub removed: f64,
+    /// Sum of the luminance the clamp compensation added back (an estimate of `removed` and
+    /// of what the clamp removes along the compensation paths; see [`super::compensate`]).
+    pub recovered: f64,
 }
 
 impl GatherEnergy {
@@ -44,6 +46,7 @@ impl std::ops::AddAssign for GatherEnergy {
     fn add_assign(&mut self, o: Self) {
         self.kept += o.kept;
         self.removed += o.removed;
+        self.recovered += o.recovered;
     }
 }
 
@@ -321,8 +324,14 @@ fn chunkable(vpls: &VplSet) -> bool {
 }
 
 /// The VPLs of every interleave subset, eight to a chunk, in subset order.
+/// The last entry holds the VPLs spread over every pixel ([`Interleave::everywhere`]).
 fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
-    inter.subsets.iter().map(|subset| subset.chunks(F8::LANES).map(|ids| VplChunk::new(vpls, ids)).collect()).collect()
+    inter
+        .subsets
+        .iter()
+        .chain(std::iter::once(&inter.everywhere))
+        .map(|subset| subset.chunks(F8::LANES).map(|ids| VplChunk::new(vpls, ids)).collect())
+        .collect()
 }
 
 impl VplChunk {
@@ -484,6 +493,9 @@ impl LambertReceiver {
     }
 }
 
+/// Stream tag of the clamp compensation's paths.
+const TAG_COMPENSATE: u64 = 0x434f_4d50_454e;
+
 /// What every row of a gather shares: the scene, the VPLs and their subsets, the clamp.
 pub(crate) struct Gatherer<'a> {
     scene: &'a Scene,
@@ -497,6 +509,8 @@ pub(crate) struct Gatherer<'a> {
     /// The subsets' VPLs in lanes, for the Lambertian fast path (diffuse or Lambertian-lobe VPLs,
     /// single shadow rays).
     chunks: Option<Vec<Vec<VplChunk>>>,
+    /// Seed of the clamp compensation's paths, when it is on ([`super::compensate`]).
+    compensate: Option<u64>,
 }
 
 impl<'a> Gatherer<'a> {
@@ -513,7 +527,13 @@ impl<'a> Gatherer<'a> {
         let chunks = (matches!(tracing, Tracing::Single | Tracing::PrimaryPackets) && chunkable(vpls))
             .then(|| chunk_subsets(vpls, inter));
         let min_d2 = min_distance * min_distance;
-        Gatherer { scene, accel, vpls, inter, g_max, min_d2, tracing, diffuse_vpls, chunks }
+        Gatherer { scene, accel, vpls, inter, g_max, min_d2, tracing, diffuse_vpls, chunks, compensate: None }
+    }
+
+    /// Adds the clamp compensation (a residual path per pixel, seeded by `seed`) when `seed` is
+    /// given and the gather clamps.
+    pub(crate) fn compensating(self, seed: Option<u64>) -> Self {
+        Gatherer { compensate: seed.filter(|_| self.g_max.is_finite()), ..self }
     }
 
     /// The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
@@ -541,7 +561,9 @@ impl<'a> Gatherer<'a> {
     /// Whether [`Gatherer::row`] needs every receiver (the packet groupings, or VPLs outside the
     /// eight-VPL kernel), not only the non-Lambertian ones.
     pub(crate) fn keeps_all_receivers(&self) -> bool {
-        !matches!((self.tracing, &self.chunks), (Tracing::Single | Tracing::PrimaryPackets, Some(_)))
+        self.compensate.is_some()
+            || !self.inter.everywhere.is_empty()
+            || !matches!((self.tracing, &self.chunks), (Tracing::Single | Tracing::PrimaryPackets, Some(_)))
     }
 
     /// Gathers row `y` from its receivers into `out` (VPL-transported light, interleave-scaled).
@@ -569,6 +591,8 @@ impl<'a> Gatherer<'a> {
             let r = receivers[x as usize].as_ref()?;
             self.candidate(row_points[x as usize].as_ref()?, r, x, i)
         };
+        // Pixels whose spread VPLs the Lambertian kernel already gathered.
+        let mut covered = vec![false; w as usize];
         let mut acc = RowSums {
             sum: vec![Vec3::ZERO; w as usize],
             removed: vec![Vec3::ZERO; w as usize],
@@ -602,10 +626,17 @@ impl<'a> Gatherer<'a> {
                     if let Some(chunks) = &self.chunks
                         && let Some(l) = &pt.lambert
                     {
+                        covered[x as usize] = true;
                         if l.f == Vec3::ZERO {
                             continue;
                         }
-                        for ch in &chunks[subsets.of(x)] {
+                        // The subset's chunks, then those spread over every pixel (the last
+                        // entry), divided by the subset's scale that the row's sums get.
+                        let k = subsets.of(x);
+                        let spread = 1.0 / inter.scales[k];
+                        let spread = if spread.is_finite() { spread } else { 0.0 };
+                        let lists = [(&chunks[k][..], 1.0), (&chunks[chunks.len() - 1][..], spread)];
+                        for (ch, weight) in lists.iter().flat_map(|(l, w)| l.iter().map(move |c| (c, *w))) {
                             let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
                             if lc.lanes == 0 {
                                 continue;
@@ -620,9 +651,13 @@ impl<'a> Gatherer<'a> {
                                 let target = vpls.position[i as usize];
                                 let o = pt.origin_towards(target);
                                 let (c, full) = lc.lane(j);
+                                let (c, full) = (c * weight, full * weight);
                                 let add = |(x, c, full)| acc.add_light(x, c, full);
                                 batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                             }
+                        }
+                        if spread == 0.0 {
+                            covered[x as usize] = false;
                         }
                         continue;
                     }
@@ -675,6 +710,36 @@ impl<'a> Gatherer<'a> {
             energy.kept += (luminance(sum) * s) as f64;
             energy.removed += (luminance(removed) * s) as f64;
             *o = sum * s;
+        }
+        // VPLs spread over every pixel (see `Interleave::everywhere`): unscaled, single rays.
+        if !inter.everywhere.is_empty() {
+            for (x, o) in out.iter_mut().enumerate() {
+                let Some(r) = receivers[x].as_ref().filter(|_| !covered[x]) else { continue };
+                for &i in &inter.everywhere {
+                    let i = i as usize;
+                    if min_d2 > 0.0 && (vpls.position[i] - r.sp.p).length_squared() < min_d2 {
+                        continue;
+                    }
+                    let Some((c, full)) = unshadowed(vpls, i, r, g_max) else { continue };
+                    let (origin, d) = shadow_segment(scene, vpls, i, r);
+                    st.shadow += 1;
+                    if !accel.occluded(origin, d, SHADOW_T_MAX) {
+                        energy.kept += luminance(c) as f64;
+                        energy.removed += luminance(full - c) as f64;
+                        *o += c;
+                    }
+                }
+            }
+        }
+        if let Some(seed) = self.compensate {
+            let comp = super::compensate::Compensation { scene, accel, vpls, inter, g_max, min_d2 };
+            for (x, o) in out.iter_mut().enumerate() {
+                let Some(r) = &receivers[x] else { continue };
+                let mut sampler = IndependentSampler::for_stream(seed, TAG_COMPENSATE, (y * w + x as u32) as u64);
+                let c = comp.residual(r, subsets.of(x as u32), &mut sampler, &mut st);
+                energy.recovered += luminance(c) as f64;
+                *o += c;
+            }
         }
         (st, energy)
     }

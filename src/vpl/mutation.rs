@@ -179,6 +179,22 @@ fn sample_length(kmax: usize, rng: &mut Pcg32) -> usize {
     k
 }
 
+/// Survival ratio of the light sub-path length of independent samples (their prefixes are all
+/// used): P(K = k) ∝ PREFIX_RATIO^(k−1) on 1..=kmax, about four vertices on average.
+const PREFIX_RATIO: f64 = 0.75;
+
+/// P(K ≥ j) for the length K of [`sample_prefix_length`].
+fn prefix_survival(j: usize, kmax: usize) -> f64 {
+    let tail = PREFIX_RATIO.powi(kmax as i32);
+    (PREFIX_RATIO.powi(j as i32 - 1) - tail) / (1.0 - tail)
+}
+
+/// A length K on 1..=kmax with P(K = k) ∝ [`PREFIX_RATIO`]^(k−1).
+fn sample_prefix_length(kmax: usize, rng: &mut Pcg32) -> usize {
+    let u = rng.next_f64();
+    (1..kmax).find(|&k| u >= prefix_survival(k + 1, kmax)).unwrap_or(kmax)
+}
+
 /// An [`Pcg32`] seen as a [`Sampler`].
 struct RngSampler<'a>(&'a mut Pcg32);
 
@@ -240,18 +256,41 @@ impl MutationKernel for Bidirectional {
         "bidir"
     }
 
+    /// One light sub-path of K vertices (P(K ≥ j) = [`prefix_survival`]), every prefix of it
+    /// connected to one camera end: the sample's weight is Σ_j π(x_j) / (P(K ≥ j) q(x_j)) over
+    /// its prefixes x_j (each an unbiased estimate of the length-j part of P_c, so the sum
+    /// estimates P_c), and the state it returns is one prefix chosen ∝ its term. Choosing one
+    /// length per sample instead (as the light sub-path mutation does) multiplies the
+    /// estimate's relative variance by 1/p(k) where light needs k vertices to reach what the
+    /// camera sees: measured on ajar-door-thick (64×48), the spread of P̂_c from a million
+    /// samples fell from 12 % to 5.1 % (the variance by 5.6×) for about twice the rays per
+    /// sample (issue 19; `examples/mir_bias.rs … pc`).
     fn independent(&self, ctx: &Context, rng: &mut Pcg32, stats: &mut RayStats) -> (Option<PathState>, f64) {
         let (raster, lens) = camera_sample(ctx, rng);
         let Some(cam) = camera_end(ctx.scene, ctx.accel, ctx.camera, raster, lens, stats) else { return (None, 0.0) };
-        let k = sample_length(ctx.max_light, rng);
+        let k = sample_prefix_length(ctx.max_light, rng);
         let mut light = Vec::with_capacity(k);
-        if !extend_light(ctx.scene, ctx.accel, ctx.light_choice, &mut light, k, &mut RngSampler(rng), stats) {
+        // A walk that ends early still gives its prefixes (their density does not depend on
+        // what came after them).
+        let _ = extend_light(ctx.scene, ctx.accel, ctx.light_choice, &mut light, k, &mut RngSampler(rng), stats);
+        let mut total = 0.0;
+        let mut terms: Vec<(usize, f64)> = Vec::with_capacity(light.len());
+        for j in 0..light.len() {
+            let Some(vpl) = vertex_vpl(ctx.scene, &light, j) else { continue };
+            let y = target(contribution(ctx.scene, ctx.accel, &cam, &vpl, stats));
+            if y > 0.0 {
+                total += y / prefix_survival(j + 1, ctx.max_light);
+                terms.push((j, total));
+            }
+        }
+        if !(total > 0.0 && total.is_finite()) {
             return (None, 0.0);
         }
-        let Some(x) = Self::build(ctx, raster, lens, cam, light, stats) else { return (None, 0.0) };
-        // π / p with p = p(k) · (density of the path): N_pix Y(C*) / p(k).
-        let w = target(x.c) * ctx.pixels() / log_p_length(k, ctx.max_light).exp();
-        (Some(x), w)
+        let pick = rng.next_f64() * total;
+        let j = terms.iter().find(|t| t.1 > pick).unwrap_or(terms.last().expect("total > 0")).0;
+        light.truncate(j + 1);
+        let x = Self::build(ctx, raster, lens, cam, light, stats);
+        (x, total * ctx.pixels())
     }
 
     fn propose(

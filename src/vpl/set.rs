@@ -68,6 +68,10 @@ pub struct VplSet {
     pub lobes: Vec<VplLobe>,
     /// Number of groups.
     pub groups: u32,
+    /// Share of the image's camera rays that see each VPL (MIR's probe estimate), or empty
+    /// when unknown. The gather spreads a VPL that would light very few pixels of its
+    /// interleave subset over every pixel instead ([`crate::gather::Interleave::new`]).
+    pub footprint: Vec<f32>,
 }
 
 /// One VPL for [`VplSet::push`].
