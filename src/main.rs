@@ -78,6 +78,10 @@ struct ReportArgs {
     /// Samples per pixel of the cached path-traced references (target/reference/).
     #[arg(long, default_value_t = 4096)]
     reference_spp: u32,
+    /// Independent runs (seeds 1..=K) per method and budget (converge): the table gives the
+    /// median relMSE and its range over the runs, since one run hides a heavy tail.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    seeds: u32,
     /// Write the markdown here (and SVG plots beside it); default: print only.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -308,7 +312,8 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         bail!("--times must be positive numbers of seconds");
     }
     let camera = CameraSettings { width: Some(args.width), height: Some(args.height), ..Default::default() };
-    let frame_settings = FrameSettings::interactive();
+    // As `mirage render` draws: clamp compensated.
+    let frame_settings = FrameSettings { compensate: true, ..FrameSettings::interactive() };
     let mut md = String::new();
     let mut svgs = Vec::new();
     let machine = std::fs::read_to_string("/proc/cpuinfo")
@@ -320,7 +325,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         })
         .unwrap_or_default();
     md += &format!(
-        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {}, discontinuity buffer on.\n\n",
+        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer on. {} run(s) per cell.\n\n",
         rayon::current_num_threads(),
         args.width,
         args.height,
@@ -328,7 +333,8 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         frame_settings.vpls,
         frame_settings.interleave.0,
         frame_settings.interleave.1,
-        frame_settings.clamp
+        frame_settings.clamp,
+        args.seeds
     );
     let mut conv_rows = Vec::new();
     let mut sampler_rows = Vec::new();
@@ -362,6 +368,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
                 &source.name(),
                 &methods,
                 &args.times,
+                args.seeds,
                 &reference,
                 &frame_settings,
                 &|m| eprintln!("{m}"),
@@ -373,7 +380,11 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
     if samplers {
         md += &report::sampler_markdown(&sampler_rows);
     } else {
-        md += "relMSE against the reference after each time budget (passes in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n";
+        md += if args.seeds > 1 {
+            "Median relMSE against the reference after each time budget over the runs, [lowest–highest] (passes of the median run in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+        } else {
+            "relMSE against the reference after each time budget (passes in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+        };
         md += &report::converge_markdown(&conv_rows, &args.times);
     }
     println!("{md}");

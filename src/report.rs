@@ -170,17 +170,22 @@ pub struct ConvergeRow {
     pub elapsed: f64,
     /// Samples per pixel or frames.
     pub passes: u32,
-    /// relMSE against the reference.
+    /// relMSE against the reference (the median over the runs).
     pub rel_mse: f64,
+    /// Lowest and highest relMSE over the runs, when there was more than one.
+    pub range: Option<(f64, f64)>,
 }
 
-/// relMSE of every method at every time budget.
+/// relMSE of every method at every time budget, from `seeds` independent runs each (seeds
+/// 1..=`seeds`): the median, and the range when there is more than one run.
+#[allow(clippy::too_many_arguments)]
 pub fn converge(
     scene: &Scene,
     accel: &Accel,
     name: &str,
     methods: &[Method],
     times: &[f64],
+    seeds: u32,
     reference: &Image,
     frame_settings: &FrameSettings,
     progress: &dyn Fn(&str),
@@ -188,15 +193,24 @@ pub fn converge(
     let mut rows = Vec::new();
     for m in methods {
         for &t in times {
-            progress(&format!("{name}: {} for {t} s", m.label()));
-            let r = run(scene, accel, m, Budget::Time(Duration::from_secs_f64(t)), 1, frame_settings);
+            progress(&format!("{name}: {} for {t} s ({} run(s))", m.label(), seeds.max(1)));
+            let mut runs: Vec<(f64, f64, u32)> = (1..=seeds.max(1) as u64)
+                .map(|seed| {
+                    let r = run(scene, accel, m, Budget::Time(Duration::from_secs_f64(t)), seed, frame_settings);
+                    (r.image.errors(reference).rel_mse, r.elapsed.as_secs_f64(), r.passes)
+                })
+                .collect();
+            runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let (rel_mse, elapsed, passes) = runs[runs.len() / 2];
+            let range = (runs.len() > 1).then(|| (runs[0].0, runs[runs.len() - 1].0));
             rows.push(ConvergeRow {
                 scene: name.to_string(),
                 method: m.label(),
                 budget: t,
-                elapsed: r.elapsed.as_secs_f64(),
-                passes: r.passes,
-                rel_mse: r.image.errors(reference).rel_mse,
+                elapsed,
+                passes,
+                rel_mse,
+                range,
             });
         }
     }
@@ -227,9 +241,14 @@ pub fn converge_markdown(rows: &[ConvergeRow], times: &[f64]) -> String {
         let _ = write!(s, "| {scene} | {method} |");
         for t in times {
             match rows.iter().find(|r| r.scene == scene && r.method == method && r.budget == *t) {
-                Some(r) => {
-                    let _ = write!(s, " {:.4} ({}) |", r.rel_mse, r.passes);
-                }
+                Some(r) => match r.range {
+                    Some((lo, hi)) => {
+                        let _ = write!(s, " {:.4} [{lo:.4}–{hi:.4}] ({}) |", r.rel_mse, r.passes);
+                    }
+                    None => {
+                        let _ = write!(s, " {:.4} ({}) |", r.rel_mse, r.passes);
+                    }
+                },
                 None => s.push_str(" – |"),
             }
         }
@@ -360,4 +379,28 @@ pub fn sampler_markdown(rows: &[SamplerRow]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Several runs per cell: the median run's relMSE and passes, with the range over the runs;
+    /// one run: the value alone.
+    #[test]
+    fn converge_table_gives_the_median_and_the_range_of_several_runs() {
+        let row = |method: &str, budget: f64, rel_mse: f64, range| ConvergeRow {
+            scene: "s".into(),
+            method: method.into(),
+            budget,
+            elapsed: budget,
+            passes: 7,
+            rel_mse,
+            range,
+        };
+        let rows = vec![row("mtmh", 1.0, 0.02, Some((0.01, 0.5))), row("sir", 1.0, 0.03, None)];
+        let md = converge_markdown(&rows, &[1.0]);
+        assert!(md.contains("| s | mtmh | 0.0200 [0.0100–0.5000] (7) |"), "{md}");
+        assert!(md.contains("| s | sir | 0.0300 (7) |"), "{md}");
+    }
 }
