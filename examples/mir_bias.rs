@@ -1,5 +1,5 @@
 //! Where MIR's light goes: image mean over seeds against pt, with the normalisation's own
-//! accounting (P_c, dropped and capped power, VPL radiance spread) per configuration.
+//! accounting (P_c, dropped power, compensation, VPL radiance spread) per configuration.
 //!
 //! ```sh
 //! cargo run --release --example mir_bias -- deep-shaft 64 48 8 8 1024
@@ -37,8 +37,7 @@ fn run<K: MutationKernel + Clone>(
     reference: f64,
 ) {
     let npix = s.camera.pixel_count() as f64;
-    let (mut means, mut pcs, mut dropped, mut capped, mut worst, mut kept_power) =
-        (vec![], vec![], vec![], vec![], 0.0f64, vec![]);
+    let (mut means, mut pcs, mut dropped, mut worst, mut kept_power) = (vec![], vec![], vec![], 0.0f64, vec![]);
     let mut truncated = 0;
     let mut recovered = 0.0;
     for seed in 0..seeds {
@@ -52,7 +51,6 @@ fn run<K: MutationKernel + Clone>(
             let r = &mir.last;
             pcs.push(r.pc / npix);
             dropped.push(r.dropped_share);
-            capped.push(0.0);
             kept_power.push(r.power_by_light.iter().sum::<f64>() / npix);
             worst = worst.max(r.max_over_median);
             truncated += r.truncated as u32;
@@ -63,11 +61,10 @@ fn run<K: MutationKernel + Clone>(
     let lo = means.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = means.iter().copied().fold(0.0, f64::max);
     println!(
-        "{name:<28} image/pt {m:.4} ± {se:.4} (median {med:.4}, {lo:.3}–{hi:.3})  P_c/pt {:.4}  kept P/pt {:.4}  dropped {:.4}  capped {:.4}  max/median {worst:.3e}  truncated {truncated}  recovered/pt {:.4}",
+        "{name:<28} image/pt {m:.4} ± {se:.4} (median {med:.4}, {lo:.3}–{hi:.3})  P_c/pt {:.4}  kept P/pt {:.4}  dropped {:.4}  max/median {worst:.3e}  truncated {truncated}  recovered/pt {:.4}",
         stats(&pcs).0 / reference,
         stats(&kept_power).0 / reference,
         stats(&dropped).0,
-        stats(&capped).0,
         recovered / (frames as f64 * seeds as f64) / reference,
     );
 }
@@ -146,13 +143,11 @@ fn main() {
     }
     let base = MirSettings::mtmh();
     let (u, c) = (FrameSettings::unbiased(256), FrameSettings::compensated(256));
-    let nocap = base.clone();
     let mut configs: Vec<(&str, MirSettings, FrameSettings, bool)> = vec![
-        ("mtmh bidir", base.clone(), u, false),
-        ("mtmh bidir no cap", nocap.clone(), u, false),
-        ("mtmh bidir comp", nocap.clone(), c, false),
-        ("mh bidir comp", MirSettings { chain: Chain::Mh, ..nocap.clone() }, c, false),
-        ("mtmh pss comp", nocap.clone(), c, true),
+        ("mtmh bidir unclamped", base.clone(), u, false),
+        ("mtmh bidir comp", base.clone(), c, false),
+        ("mh bidir comp", MirSettings { chain: Chain::Mh, ..base.clone() }, c, false),
+        ("mtmh pss comp", base.clone(), c, true),
     ];
     if only != "all" {
         configs.retain(|c| c.0 == only);

@@ -282,7 +282,9 @@ fn seed_spread(e: &Estimate) -> (f64, f64, f64, f64, f64) {
 /// errors of the difference, over 8 seeds, for MTMH and MH with both kernels. Before issue 19
 /// the slit scene's MIR mean was 0.61 of pt's (the clamped target missed the short
 /// connections next to the slit, and the radiance cap removed more); the bare clamp is checked
-/// to be darker there, so the test can see a missing 20 %. pt needs its 8 × 1536 spp: at 384
+/// to be darker there (z > 3; it came out at 0.75 of pt, z = 3.8). At this budget the mean
+/// test's bound of four standard errors alone would not reject a 25 % loss on the slit scene:
+/// its resolution is the seeds' spread, ~9 % of the mean there and ~2 % on deep-shaft. pt needs its 8 × 1536 spp: at 384
 /// its own heavy tail (light through the shaft is rare for camera paths too) put its mean 4–7 %
 /// below every MIR configuration on deep-shaft and failed the block test on pt's side.
 #[test]
