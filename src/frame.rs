@@ -45,6 +45,9 @@ pub struct FrameSettings {
     /// Gather VPLs that light very few pixels of their interleave subset at every pixel
     /// ([`Interleave::for_image`]): without it such VPLs show as bright 8×8 squares.
     pub spread_small_vpls: bool,
+    /// Keep each pixel's compensation term apart as well ([`Frame::compensation`]; for the
+    /// EXR's `compensation` layer).
+    pub compensation_aov: bool,
 }
 
 impl FrameSettings {
@@ -66,6 +69,7 @@ impl FrameSettings {
             tracing: Tracing::default(),
             compensate: false,
             spread_small_vpls: true,
+            compensation_aov: false,
         }
     }
 
@@ -96,6 +100,8 @@ pub struct FrameStats {
     pub primary_time: Duration,
     /// Gather (shadow rays and shading) time, including filling the filter's planes.
     pub shadow_time: Duration,
+    /// The part of `shadow_time` the clamp compensation took.
+    pub compensation_time: Duration,
     /// Filter time (the planes it reads were filled during the pass).
     pub filter_time: Duration,
     /// Rays of the G-buffer and the gather.
@@ -112,6 +118,7 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
         self.vpl_time += o.vpl_time;
         self.primary_time += o.primary_time;
         self.shadow_time += o.shadow_time;
+        self.compensation_time += o.compensation_time;
         self.filter_time += o.filter_time;
         self.rays += o.rays;
         self.energy += o.energy;
@@ -158,6 +165,9 @@ pub struct Frame {
     pub vpls: VplSet,
     /// Stage times and counts.
     pub stats: FrameStats,
+    /// Each pixel's clamp-compensation term, before the filter (included in `image`), when
+    /// [`FrameSettings::compensation_aov`] asked; empty otherwise.
+    pub compensation: Vec<Vec3>,
 }
 
 impl Frame {
@@ -263,15 +273,27 @@ pub fn gather_frame_reusing(
         g_max: g_bound(scene, settings.clamp),
         min_distance: settings.min_distance,
         compensate: settings.compensate,
+        compensation_aov: settings.compensation_aov,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
         gbuffer: camera_rays.gbuffer,
         ratio_planes_on_reuse: recorded,
     };
-    let Gathered { gbuffer: gbuf, light: gathered, energy, primary_time, shadow_time, planes, held, reused } =
-        gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
+    let Gathered {
+        gbuffer: gbuf,
+        light: gathered,
+        energy,
+        primary_time,
+        shadow_time,
+        compensation_time,
+        compensation,
+        planes,
+        held,
+        reused,
+    } = gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
     stats.energy = energy;
     stats.primary_time = primary_time;
     stats.shadow_time = shadow_time;
+    stats.compensation_time = compensation_time;
     stats.gbuffer_reused = reused as u64;
     let t = Instant::now();
     // (The planes were filled during the pass: their time counts there.)
@@ -321,7 +343,7 @@ pub fn gather_frame_reusing(
     stats.filter_time = t.elapsed();
     let scratch =
         Spare { lent: Lent { gbuffer: GBuffer::default(), light: gathered, planes, held }, image: Vec::new(), masks };
-    Frame { image, gbuffer: gbuf, vpls, stats, scratch }
+    Frame { image, gbuffer: gbuf, vpls, stats, scratch, compensation }
 }
 
 /// How long and with which streams frames accumulate.
@@ -346,6 +368,7 @@ pub fn render_progressive(
     progress: &ProgressBar,
 ) -> (RenderOutput, FrameStats) {
     let Accumulation { budget, seed, aovs } = acc;
+    let settings = &FrameSettings { compensation_aov: aovs && settings.compensate, ..*settings };
     let cam = &scene.camera;
     let mut film = Film::new(cam.width, cam.height, FilterKind::Box, aovs);
     let start = Instant::now();
@@ -366,7 +389,9 @@ pub fn render_progressive(
                 tile.add(x, y, frame.image[i], 1.0);
                 if aovs {
                     let g = &frame.gbuffer;
-                    tile.add_aov(x, y, &AovSample { albedo: g.albedo[i], normal: g.normal[i], depth: g.depth[i] });
+                    let compensation = frame.compensation.get(i).copied().unwrap_or_default();
+                    let a = AovSample { albedo: g.albedo[i], normal: g.normal[i], depth: g.depth[i], compensation };
+                    tile.add_aov(x, y, &a);
                 }
             }
         }
@@ -435,5 +460,30 @@ mod tests {
         let again = frame(a.clone(), 9, plain.into_spare(), GBufferUse::Reuse);
         assert_eq!(again.stats.gbuffer_reused, 0);
         assert!(again.image == traced(a, 9));
+    }
+
+    /// The compensation layer is each pixel's residual alone: the compensated frame minus it is
+    /// the uncompensated frame of the same seed (the residual paths have their own streams),
+    /// and its luminance sums to what the frame reports recovered.
+    #[test]
+    fn the_compensation_layer_is_what_compensation_added() {
+        let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+        let accel = Accel::build(&scene.mesh);
+        let camera = scene.camera.clone().with_resolution(24, 16);
+        let base = FrameSettings { interleave: (4, 4), clamp: 30.0, filter: None, ..FrameSettings::interactive() };
+        let run = |settings: FrameSettings| render_frame(&scene, &accel, &camera, &mut Sir::new(4), &settings, 9);
+        let off = run(base);
+        assert!(off.compensation.is_empty());
+        let on = run(FrameSettings { compensate: true, compensation_aov: true, ..base });
+        assert_eq!(on.compensation.len(), on.image.len());
+        let (mut recovered, mut nonzero) = (0.0, 0);
+        for ((a, b), c) in on.image.iter().zip(&off.image).zip(&on.compensation) {
+            assert!((*a - *c - *b).abs().max_element() <= 1e-4 * (1.0 + b.max_element()), "{a} − {c} ≠ {b}");
+            recovered += crate::color::luminance(*c) as f64;
+            nonzero += (*c != Vec3::ZERO) as u32;
+        }
+        assert!(nonzero > 0 && off.stats.energy.removed > 0.0, "clamp 30 acts on the Cornell box");
+        let r = on.stats.energy.recovered;
+        assert!((recovered - r).abs() <= 1e-4 * r, "{recovered} vs {r}");
     }
 }

@@ -148,8 +148,15 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     let (out, frame_stats) = render::render(&scene, &accel, &options, &pb);
     let image = out.film.image();
     let aovs = out.film.aov_images();
+    // The compensation layer only where a VPL mode compensated the clamp.
+    let compensated = frame_stats.is_some() && options.frame.compensate && options.frame.clamp > 0.0;
     let aov_refs = match &aovs {
-        Some((a, n, d)) => Aovs { albedo: Some(a), normal: Some(n), depth: Some(d) },
+        Some(a) => Aovs {
+            albedo: Some(&a.albedo),
+            normal: Some(&a.normal),
+            depth: Some(&a.depth),
+            compensation: compensated.then_some(&a.compensation),
+        },
         None => Aovs::default(),
     };
     output::write_exr(&exr_path, &image, aov_refs)?;
@@ -194,9 +201,10 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             eprintln!("mirage: warning: {w}");
         }
         let frames = out.spp.max(1) as f64;
+        let compensated = options.frame.compensate && options.frame.clamp > 0.0;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
         println!(
-            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s), filter {:.1} ms; clamping removed {:.2} % of the gathered energy, {}{}",
+            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms; {}{}",
             out.spp,
             options.frame.vpls,
             options.vpl_sampler.build_with(&options.sampler).name(),
@@ -204,20 +212,38 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             fs.primary_time.as_secs_f64() * 1e3 / frames,
             fs.shadow_time.as_secs_f64() * 1e3 / frames,
             fs.rays.shadow as f64 / shadow_s / 1e6,
-            fs.filter_time.as_secs_f64() * 1e3 / frames,
-            100.0 * fs.energy.removed_share(),
-            if options.frame.compensate && options.frame.clamp > 0.0 {
-                format!(
-                    "compensation added {:.2} % to the gathered light (its estimate of what the clamp removed, here and along its paths)",
-                    100.0 * fs.energy.recovered / fs.energy.kept.max(f64::MIN_POSITIVE)
-                )
+            if compensated {
+                format!(", of which compensation {:.1} ms", fs.compensation_time.as_secs_f64() * 1e3 / frames)
             } else {
-                "not compensated (biased: darker)".to_string()
+                String::new()
             },
+            fs.filter_time.as_secs_f64() * 1e3 / frames,
+            clamp_summary(&fs.energy, compensated),
             fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default()
         );
     }
     Ok(())
+}
+
+/// What the clamp removed and what its compensation added back, in % of the unclamped
+/// gathered light: "removed" is the VPLs' own estimate of the removed light (heavy-tailed), the
+/// compensation another, unbiased, estimate of the same; their difference estimates the bias
+/// left (zero in expectation, but for what the compensation does not follow: specular
+/// receivers, paths beyond its depth).
+fn clamp_summary(e: &mirage::gather::GatherEnergy, compensated: bool) -> String {
+    let total = (e.kept + e.removed).max(f64::MIN_POSITIVE);
+    let removed = 100.0 * e.removed / total;
+    if compensated {
+        let recovered = 100.0 * e.recovered / total;
+        format!(
+            "clamping removed {removed:.2} % of the gathered light, compensation recovered {recovered:.2} % (net bias estimate {:+.2} %)",
+            recovered - removed
+        )
+    } else if e.removed > 0.0 {
+        format!("clamping removed {removed:.2} % of the gathered light, not compensated (biased: darker)")
+    } else {
+        "no clamping".to_string()
+    }
 }
 
 fn cmd_info(scene: Option<&str>) -> Result<()> {

@@ -45,6 +45,22 @@ fn default_render_writes_exr_and_png_of_the_cornell_box() {
     assert!(out.with_extension("png").exists());
     let summary = String::from_utf8_lossy(&o.stdout);
     assert!(summary.contains("spp") && summary.contains("Mrays/s"), "{summary}");
+    assert!(summary.contains("compensation recovered") && summary.contains("net bias estimate"), "{summary}");
+    // With --aov the EXR carries the compensation term as its own layer, and only in a VPL
+    // mode that compensated.
+    let aov = dir.join("aov.exr");
+    let small =
+        ["render", "--spp", "2", "--width", "16", "--height", "16", "--quiet", "--aov", "-o", aov.to_str().unwrap()];
+    let o = mirage(&small);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let comp = mirage::output::read_exr_layer(&aov, "compensation").unwrap();
+    assert_eq!(comp.non_finite_count(), 0);
+    assert!(comp.mean_luminance() > 0.0, "the default clamp removes some light the compensation brings back");
+    assert!(mirage::output::read_exr_layer(&aov, "albedo").is_ok());
+    let o = mirage(&[&small[..], &["--compensate", "off"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(mirage::output::read_exr_layer(&aov, "compensation").is_err());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("not compensated"));
 }
 
 #[test]

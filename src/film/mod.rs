@@ -1,5 +1,5 @@
 //! The film: linear HDR accumulation with pixel filters, light-tracing splats and AOVs
-//! (albedo, normal, depth); image metrics and tone mapping.
+//! (albedo, normal, depth, clamp compensation); image metrics and tone mapping.
 //!
 //! Drivers give each thread a [`FilmTile`] (disjoint pixel rectangles) and merge finished tiles
 //! in a fixed order, so the image does not depend on the thread count. Splats (light tracing,
@@ -33,6 +33,9 @@ pub struct AovPixel {
     pub normal: Vec3,
     /// Depth (distance along the camera ray) sum.
     pub depth: f32,
+    /// Clamp-compensation term sum (VPL modes with `--compensate on`; see
+    /// [`crate::gather::compensate`]).
+    pub compensation: Vec3,
     /// Number of samples summed.
     pub count: u32,
 }
@@ -46,6 +49,21 @@ pub struct AovSample {
     pub normal: Vec3,
     /// Distance along the camera ray (0 for a miss).
     pub depth: f32,
+    /// The radiance the clamp compensation added to the sample (zero where none).
+    pub compensation: Vec3,
+}
+
+/// The AOV images of a film ([`Film::aov_images`]).
+#[derive(Clone, Debug)]
+pub struct AovImages {
+    /// Mean albedo of the first surface.
+    pub albedo: Image,
+    /// Mean shading normal (normalised).
+    pub normal: Image,
+    /// Mean depth (in every channel).
+    pub depth: Image,
+    /// Mean clamp-compensation term (before the discontinuity buffer).
+    pub compensation: Image,
 }
 
 /// A rectangle of pixels owned by one thread while it renders.
@@ -102,6 +120,7 @@ impl FilmTile {
         p.albedo += a.albedo;
         p.normal += a.normal;
         p.depth += a.depth;
+        p.compensation += a.compensation;
         p.count += 1;
     }
 }
@@ -166,6 +185,7 @@ impl Film {
                     a.albedo += b.albedo;
                     a.normal += b.normal;
                     a.depth += b.depth;
+                    a.compensation += b.compensation;
                     a.count += b.count;
                 }
             }
@@ -207,24 +227,24 @@ impl Film {
         Image { width: self.width, height: self.height, data }
     }
 
-    /// The AOV images (albedo, normal, depth), when accumulated.
-    pub fn aov_images(&self) -> Option<(Image, Image, Image)> {
+    /// The AOV images, when accumulated.
+    pub fn aov_images(&self) -> Option<AovImages> {
         if self.aovs.is_empty() {
             return None;
         }
-        let (mut a, mut n, mut d) = (
-            Image::new(self.width, self.height),
-            Image::new(self.width, self.height),
-            Image::new(self.width, self.height),
-        );
+        let blank = Image::new(self.width, self.height);
+        let mut out =
+            AovImages { albedo: blank.clone(), normal: blank.clone(), depth: blank.clone(), compensation: blank };
         for (i, p) in self.aovs.iter().enumerate() {
             if p.count > 0 {
                 let c = p.count as f32;
-                a.data[i] = p.albedo / c;
-                n.data[i] = p.normal.try_normalize().unwrap_or(Vec3::ZERO);
-                d.data[i] = Vec3::splat(p.depth / c);
+                out.albedo.data[i] = p.albedo / c;
+                out.normal.data[i] = p.normal.try_normalize().unwrap_or(Vec3::ZERO);
+                out.depth.data[i] = Vec3::splat(p.depth / c);
+                let comp = p.compensation / c;
+                out.compensation.data[i] = if comp.is_finite() { comp } else { Vec3::ZERO };
             }
         }
-        Some((a, n, d))
+        Some(out)
     }
 }

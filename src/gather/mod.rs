@@ -48,6 +48,8 @@ pub struct OnePass<'a> {
     pub min_distance: f32,
     /// Add the clamp compensation ([`compensate`]) when `g_max` is finite.
     pub compensate: bool,
+    /// Also return each pixel's compensation term alone ([`Gathered::compensation`]).
+    pub compensation_aov: bool,
     /// Fill the discontinuity buffer's planes of this layout too (see [`Gathered::planes`]).
     pub planes: Option<PlaneLayout>,
     /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
@@ -157,6 +159,11 @@ pub struct Gathered {
     pub primary_time: Duration,
     /// See `primary_time`.
     pub shadow_time: Duration,
+    /// The part of `shadow_time` the clamp compensation took (split the same way).
+    pub compensation_time: Duration,
+    /// Each pixel's clamp-compensation term (included in `light`), when
+    /// [`OnePass::compensation_aov`] asked; empty otherwise.
+    pub compensation: Vec<Vec3>,
     /// The discontinuity buffer's planes ([`crate::filter::filter_planes`]), filled band by
     /// band while the band's G-buffer and light are in cache, when [`OnePass::planes`] asks.
     pub planes: Option<Vec<f32>>,
@@ -193,6 +200,7 @@ pub fn trace_and_gather(
         g_max,
         min_distance,
         compensate,
+        compensation_aov,
         planes: layout,
         gbuffer: use_gbuffer,
         ratio_planes_on_reuse,
@@ -233,6 +241,12 @@ pub fn trace_and_gather(
         let len = l.row_len() * h as usize;
         if planes.len() == len { planes } else { fresh(len, 0.0) }
     });
+    let mut compensation = if compensation_aov { fresh(n, Vec3::ZERO) } else { Vec::new() };
+    let mut compensation_bands: Vec<Option<&mut [Vec3]>> = if compensation_aov {
+        compensation.chunks_mut(band_len.max(1)).map(Some).collect()
+    } else {
+        (0..n_bands).map(|_| None).collect()
+    };
     let mut plane_bands: Vec<Option<&mut [f32]>> = match (&mut planes, layout) {
         (Some(p), Some(l)) => p.chunks_mut(l.row_len() * rays.band_rows() as usize).map(Some).collect(),
         _ => (0..n_bands).map(|_| None).collect(),
@@ -245,8 +259,9 @@ pub fn trace_and_gather(
         (0..n_bands).map(|_| None).collect()
     };
     let keep_receiver = gatherer.keeps_receiver();
-    // Per band: ray statistics, energy, and thread time in each half.
-    type Band = (RayStats, GatherEnergy, Duration, Duration);
+    // Per band: ray statistics, energy, thread time in each half, and the compensation's part
+    // of the second.
+    type Band = (RayStats, GatherEnergy, Duration, Duration, Duration);
     let bands: Vec<Band> = light
         .par_chunks_mut(band_len.max(1))
         .zip(g.emitted.par_chunks_mut(band_len.max(1)))
@@ -255,11 +270,12 @@ pub fn trace_and_gather(
         .zip(g.depth.par_chunks_mut(band_len.max(1)))
         .zip(plane_bands.par_iter_mut())
         .zip(held_bands.par_iter_mut())
+        .zip(compensation_bands.par_iter_mut())
         .enumerate()
         .map_init(
             <(Vec<_>, Vec<_>)>::default,
             |(receivers, prepared),
-             (band, ((((((light, emitted), albedo), normal), depth), plane_band), held_band))| {
+             (band, (((((((light, emitted), albedo), normal), depth), plane_band), held_band), comp_band))| {
                 let t = Instant::now();
                 receivers.resize(light.len(), None);
                 let y0 = band as u32 * rays.band_rows();
@@ -305,13 +321,16 @@ pub fn trace_and_gather(
                     }
                 };
                 let t_primary = t.elapsed();
-                let mut energy = GatherEnergy::default();
+                let (mut energy, mut t_comp) = (GatherEnergy::default(), Duration::ZERO);
                 let row = w as usize;
+                let mut comp_rows = comp_band.as_deref_mut().map(|c| c.chunks_mut(row));
                 let rows = receivers.chunks(row).zip(prepared.chunks(row)).zip(light.chunks_mut(row));
                 for (k, ((receivers, prepared), light)) in rows.enumerate() {
-                    let (s, e) = gatherer.row(y0 + k as u32, receivers, Some(prepared), light);
-                    st += s;
-                    energy += e;
+                    let comp = comp_rows.as_mut().and_then(|c| c.next());
+                    let r = gatherer.row(y0 + k as u32, receivers, Some(prepared), light, comp);
+                    st += r.stats;
+                    energy += r.energy;
+                    t_comp += r.compensation_time;
                 }
                 if let (Some(l), Some(p)) = (layout, plane_band) {
                     for (k, plane_row) in p.chunks_mut(l.row_len()).enumerate() {
@@ -323,26 +342,41 @@ pub fn trace_and_gather(
                         }
                     }
                 }
-                (st, energy, t_primary, t.elapsed() - t_primary)
+                (st, energy, t_primary, t.elapsed() - t_primary, t_comp)
             },
         )
         .collect();
     drop(plane_bands);
+    drop(compensation_bands);
     drop(held_bands);
     if hold {
         held.key = Some(key);
     }
-    let (mut energy, mut primary, mut shadow) = (GatherEnergy::default(), Duration::ZERO, Duration::ZERO);
-    for (st, e, p, s) in bands {
+    let (mut energy, mut primary, mut shadow, mut comp) =
+        (GatherEnergy::default(), Duration::ZERO, Duration::ZERO, Duration::ZERO);
+    for (st, e, p, s, c) in bands {
         *stats += st;
         energy += e;
         primary += p;
         shadow += s;
+        comp += c;
     }
     let wall = start.elapsed();
-    let share = primary.as_secs_f64() / (primary + shadow).as_secs_f64().max(1e-12);
-    let primary_time = wall.mul_f64(share);
-    Gathered { gbuffer: g, light, energy, primary_time, shadow_time: wall - primary_time, planes, held, reused: reuse }
+    let thread = (primary + shadow).as_secs_f64().max(1e-12);
+    let primary_time = wall.mul_f64(primary.as_secs_f64() / thread);
+    let compensation_time = wall.mul_f64(comp.as_secs_f64() / thread);
+    Gathered {
+        gbuffer: g,
+        light,
+        energy,
+        primary_time,
+        shadow_time: wall - primary_time,
+        compensation_time,
+        compensation,
+        planes,
+        held,
+        reused: reuse,
+    }
 }
 
 /// `n` copies of `v`, written in parallel (a serial fill of a frame-sized buffer, and its page
@@ -459,6 +493,7 @@ mod tests {
                     g_max,
                     min_distance,
                     compensate: false,
+                    compensation_aov: false,
                     planes: Some(layout),
                     gbuffer: GBufferUse::Trace,
                     ratio_planes_on_reuse: false,
@@ -587,6 +622,7 @@ mod tests {
                     g_max,
                     min_distance: 0.0,
                     compensate: false,
+                    compensation_aov: false,
                     planes: Some(layout),
                     gbuffer,
                     ratio_planes_on_reuse: false,

@@ -2,6 +2,8 @@
 //! clamped at the bound of `--clamp` (0: no clamp, unbiased). Clamping is reported honestly:
 //! the luminance the clamp removed is summed alongside what was kept.
 
+use std::time::{Duration, Instant};
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -48,6 +50,17 @@ impl std::ops::AddAssign for GatherEnergy {
         self.removed += o.removed;
         self.recovered += o.recovered;
     }
+}
+
+/// What [`Gatherer::row`] did.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct RowGathered {
+    /// Rays traced.
+    pub stats: RayStats,
+    /// Energy kept, removed and recovered.
+    pub energy: GatherEnergy,
+    /// Thread time spent on the clamp compensation.
+    pub compensation_time: Duration,
 }
 
 /// A shadow ray still to trace: pixel x of the row, clamped and unclamped contributions, segment.
@@ -568,14 +581,16 @@ impl<'a> Gatherer<'a> {
 
     /// Gathers row `y` from its receivers into `out` (VPL-transported light, interleave-scaled).
     /// `prepared`, when given, holds the row's receivers already prepared; `receivers` then
-    /// needs only those that [`Gatherer::keeps_receiver`] keeps.
+    /// needs only those that [`Gatherer::keeps_receiver`] keeps. With the clamp compensated,
+    /// `compensation` (when given) receives each pixel's residual alone (it is in `out` too).
     pub(crate) fn row(
         &self,
         y: u32,
         receivers: &[Option<Receiver>],
         prepared: Option<&[Option<Prepared>]>,
         out: &mut [Vec3],
-    ) -> (RayStats, GatherEnergy) {
+        compensation: Option<&mut [Vec3]>,
+    ) -> RowGathered {
         let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
         let w = out.len() as u32;
         let subsets = inter.row(y);
@@ -731,17 +746,30 @@ impl<'a> Gatherer<'a> {
                 }
             }
         }
+        let mut compensation_time = Duration::ZERO;
         if let Some(seed) = self.compensate {
+            let t = Instant::now();
             let comp = super::compensate::Compensation { scene, accel, vpls, inter, g_max, min_d2 };
+            let mut aov = compensation;
+            // One stream per row, its pixels in order (rows are gathered whole, so the image
+            // does not depend on the thread count).
+            let mut sampler = IndependentSampler::for_stream(seed, TAG_COMPENSATE, y as u64);
             for (x, o) in out.iter_mut().enumerate() {
-                let Some(r) = &receivers[x] else { continue };
-                let mut sampler = IndependentSampler::for_stream(seed, TAG_COMPENSATE, (y * w + x as u32) as u64);
-                let c = comp.residual(r, subsets.of(x as u32), &mut sampler, &mut st);
+                let c = match &receivers[x] {
+                    Some(r) => comp.residual(r, subsets.of(x as u32), &mut sampler, &mut st),
+                    None => Vec3::ZERO,
+                };
                 energy.recovered += luminance(c) as f64;
                 *o += c;
+                if let Some(a) = aov.as_deref_mut() {
+                    a[x] = c;
+                }
             }
+            compensation_time = t.elapsed();
+        } else if let Some(a) = compensation {
+            a.fill(Vec3::ZERO);
         }
-        (st, energy)
+        RowGathered { stats: st, energy, compensation_time }
     }
 }
 
@@ -763,16 +791,16 @@ pub fn gather(
     assert_eq!(gbuf.receivers.len(), w * gbuf.height as usize, "a G-buffer with receivers");
     let gatherer = Gatherer::new(scene, accel, vpls, inter, g_max, min_distance, tracing);
     let mut out = vec![Vec3::ZERO; gbuf.receivers.len()];
-    let rows: Vec<(RayStats, GatherEnergy)> = out
+    let rows: Vec<RowGathered> = out
         .par_chunks_mut(w.max(1))
         .zip(gbuf.receivers.par_chunks(w.max(1)))
         .enumerate()
-        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, None, out))
+        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, None, out, None))
         .collect();
     let mut energy = GatherEnergy::default();
-    for (st, e) in rows {
-        *stats += st;
-        energy += e;
+    for r in rows {
+        *stats += r.stats;
+        energy += r.energy;
     }
     (out, energy)
 }

@@ -65,7 +65,12 @@ pub fn sample(
         camera_subpath(scene, accel, raster, sampler, max_depth + 2, camera, stats);
         light_subpath(scene, accel, sampler, max_depth + 1, light, stats);
         let aov = match camera.get(1).and_then(|v| v.bsdf.map(|b| (v, b))) {
-            Some((v, b)) => AovSample { albedo: b.albedo(), normal: b.frame.n, depth: (v.p - camera[0].p).length() },
+            Some((v, b)) => AovSample {
+                albedo: b.albedo(),
+                normal: b.frame.n,
+                depth: (v.p - camera[0].p).length(),
+                ..Default::default()
+            },
             None => AovSample::default(),
         };
         let mut l = Vec3::ZERO;

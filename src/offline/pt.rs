@@ -91,7 +91,7 @@ pub fn radiance_of_length(
 
         let bsdf = Bsdf::new(material.bsdf_kind(sp.uv, &scene.textures), sp.ns, sp.ng, wo);
         if depth == 0 {
-            aov = AovSample { albedo: bsdf.albedo(), normal: bsdf.frame.n, depth: hit.t };
+            aov = AovSample { albedo: bsdf.albedo(), normal: bsdf.frame.n, depth: hit.t, ..Default::default() };
         }
         if depth >= max_depth || edges.is_some_and(|(_, hi)| depth + 1 >= hi) {
             break;

@@ -1,5 +1,6 @@
 //! Image files out (and back in, for `mirage diff`): EXR (float32 linear RGB, optional
-//! albedo / normal / depth layers) through `exr`, and tone-mapped 8-bit PNG through `image`.
+//! albedo / normal / depth / clamp-compensation layers) through `exr`, and tone-mapped 8-bit
+//! PNG through `image`.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -39,6 +40,8 @@ pub struct Aovs<'a> {
     pub normal: Option<&'a Image>,
     /// Depth (Z, from the first channel).
     pub depth: Option<&'a Image>,
+    /// The clamp compensation's term (compensation.R/G/B).
+    pub compensation: Option<&'a Image>,
 }
 
 fn channel(name: &str, img: &Image, c: usize) -> AnyChannel<FlatSamples> {
@@ -57,6 +60,13 @@ pub fn write_exr(path: &Path, img: &Image, aovs: Aovs<'_>) -> Result<(), SaveErr
     }
     if let Some(d) = aovs.depth {
         channels.push(channel("Z", d, 0));
+    }
+    if let Some(c) = aovs.compensation {
+        channels.extend([
+            channel("compensation.R", c, 0),
+            channel("compensation.G", c, 1),
+            channel("compensation.B", c, 2),
+        ]);
     }
     let size = (img.width as usize, img.height as usize);
     let layer = Layer::new(
@@ -88,6 +98,31 @@ pub fn read_exr(path: &Path) -> Result<Image, SaveError> {
     Ok(read.layer_data.channel_data.pixels)
 }
 
+/// Reads the three channels `{prefix}.R/G/B` of the first layer of an EXR file (for example
+/// the `compensation` layer that `render --aov` writes in VPL modes).
+pub fn read_exr_layer(path: &Path, prefix: &str) -> Result<Image, SaveError> {
+    if !path.exists() {
+        return Err(err(path, "file not found"));
+    }
+    let read =
+        exr::prelude::read_first_flat_layer_from_file(path).map_err(|e| err(path, format!("cannot read EXR: {e}")))?;
+    let layer = &read.layer_data;
+    let mut img = Image::new(layer.size.width() as u32, layer.size.height() as u32);
+    for (c, suffix) in ["R", "G", "B"].into_iter().enumerate() {
+        let name = format!("{prefix}.{suffix}");
+        let ch = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|ch| ch.name.to_string() == name)
+            .ok_or_else(|| err(path, format!("no channel {name}")))?;
+        for (p, v) in img.data.iter_mut().zip(ch.sample_data.values_as_f32()) {
+            p[c] = v;
+        }
+    }
+    Ok(img)
+}
+
 /// Writes a tone-mapped 8-bit sRGB PNG.
 pub fn write_png(path: &Path, img: &Image, tonemap: Tonemap) -> Result<(), SaveError> {
     let bytes = to_srgb8(img, tonemap);
@@ -108,8 +143,11 @@ mod tests {
             *p = Vec3::new(i as f32 * 0.5, 1e-3, 1e4);
         }
         let path = dir.join("a.exr");
-        write_exr(&path, &img, Aovs { albedo: Some(&img), normal: None, depth: Some(&img) }).unwrap();
+        write_exr(&path, &img, Aovs { albedo: Some(&img), normal: None, depth: Some(&img), compensation: Some(&img) })
+            .unwrap();
         assert_eq!(read_exr(&path).unwrap(), img);
+        assert_eq!(read_exr_layer(&path, "compensation").unwrap(), img);
+        assert!(read_exr_layer(&path, "N").unwrap_err().to_string().contains("no channel N.R"));
         write_png(&dir.join("a.png"), &img, Tonemap::Reinhard).unwrap();
         assert!(read_exr(&dir.join("missing.exr")).unwrap_err().to_string().contains("missing.exr: file not found"));
         let _ = std::fs::remove_dir_all(&dir);

@@ -39,7 +39,8 @@ pub const CONTROLS_HELP: &str = "Window controls:
   1-9, Tab        VPL sampler (sir, sir-cdf, bir, mh, mtmh)      = / -        VPLs ×2 / ÷2
   I               interleave tile 1, 2, 4, 8, 16                 C            clamp on/off (. , ×10 ÷10)
   F               discontinuity filter on/off                    K            chain + VPL reuse / fresh chains
-  P, F12          screenshot (EXR + PNG)                         H / F1       HUD / key help;  Esc quit";
+  B               clamp compensation on/off (cost: COMP in HUD)  P, F12       screenshot (EXR + PNG)
+  H / F1          HUD / key help                                 Esc          quit";
 
 /// Flags of `mirage view`.
 #[derive(Args, Clone, Debug)]

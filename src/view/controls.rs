@@ -13,6 +13,7 @@
 //! | = / − (also keypad + / −) | VPLs per frame ×2 / ÷2 |
 //! | I | interleave tile 1×1 → 2×2 → 4×4 → 8×8 → 16×16 |
 //! | C | clamp on / off; `.` / `,` clamp bound ×10 / ÷10 |
+//! | B | clamp compensation on / off (its time shows in the HUD as COMP) |
 //! | F | discontinuity filter on / off |
 //! | K | chain reuse / fresh chains every frame |
 //! | P or F12 | screenshot (EXR + PNG) |
@@ -50,6 +51,8 @@ pub enum Action {
     ClampUp,
     /// Clamp bound ÷10.
     ClampDown,
+    /// Clamp compensation on / off.
+    ToggleCompensation,
     /// Discontinuity filter on / off.
     ToggleFilter,
     /// Chain reuse / fresh chains.
@@ -81,6 +84,7 @@ pub fn action_for(key: KeyCode) -> Option<Action> {
         KeyC => Action::ToggleClamp,
         Period => Action::ClampUp,
         Comma => Action::ClampDown,
+        KeyB => Action::ToggleCompensation,
         KeyF => Action::ToggleFilter,
         KeyK => Action::ToggleChains,
         KeyP | F12 => Action::Screenshot,
@@ -93,13 +97,14 @@ pub fn action_for(key: KeyCode) -> Option<Action> {
 }
 
 /// One line per key, for the help overlay.
-pub const HELP: [&str; 12] = [
+pub const HELP: [&str; 13] = [
     "WASD/QE MOVE   DRAG LOOK   WHEEL SPEED",
     "R RESET CAMERA",
     "1-9 / TAB  VPL SAMPLER",
     "= / -  VPLS X2 / /2",
     "I  INTERLEAVE TILE",
     "C  CLAMP ON/OFF   . / ,  CLAMP X10 / /10",
+    "B  CLAMP COMPENSATION ON/OFF",
     "F  FILTER ON/OFF",
     "K  CHAIN REUSE / FRESH",
     "P  SCREENSHOT (EXR + PNG)",
@@ -168,6 +173,10 @@ pub fn apply(action: Action, session: &mut Session, state: &mut ControlState) ->
             f.clamp = (base * k).clamp(1e-3, 1e12);
             state.clamp_bound = f.clamp;
             format!("clamp {}", f.clamp)
+        }
+        Action::ToggleCompensation => {
+            f.compensate = !f.compensate;
+            format!("clamp compensation {}", if f.compensate { "on" } else { "off" })
         }
         Action::ToggleFilter => {
             f.filter = match f.filter {
@@ -248,6 +257,11 @@ mod tests {
         assert_eq!(s.settings().frame.filter, start.filter);
         apply(Action::ToggleChains, &mut s, &mut st);
         assert!(s.settings().fresh_chains);
+        assert_eq!(action_for(KeyCode::KeyB), Some(Action::ToggleCompensation));
+        apply(Action::ToggleCompensation, &mut s, &mut st);
+        assert_eq!(s.settings().frame.compensate, !start.compensate);
+        apply(Action::ToggleCompensation, &mut s, &mut st);
+        assert_eq!(s.settings().frame.compensate, start.compensate);
         assert_eq!(apply(Action::Screenshot, &mut s, &mut st), None);
     }
 }

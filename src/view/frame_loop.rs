@@ -3,7 +3,7 @@
 //! convergence), record, and keep per-stage times.
 //!
 //! Timed stages, per frame: `vpls` (the sampler), `primary` (G-buffer rays), `shadow` (the
-//! gather), `filter` (discontinuity buffer), `display` (running mean + tone mapping). The frame
+//! gather, with its `compensation` part), `filter` (discontinuity buffer), `display` (running mean + tone mapping). The frame
 //! time is the wall clock from the frame's start to its display; measures and file writes are
 //! outside it. It is the stages' sum, except that VPLs sampled ahead during the previous frame's
 //! gather ([`super::session`]) report the time they took beside it.
@@ -27,6 +27,8 @@ pub struct StageTimes {
     pub primary: f64,
     /// Gather (shadow rays).
     pub shadow: f64,
+    /// The clamp compensation's part of `shadow`.
+    pub compensation: f64,
     /// Discontinuity buffer.
     pub filter: f64,
     /// Accumulation and tone mapping.
@@ -41,6 +43,7 @@ impl StageTimes {
             vpls: o.stats.vpl_time.as_secs_f64(),
             primary: o.stats.primary_time.as_secs_f64(),
             shadow: o.stats.shadow_time.as_secs_f64(),
+            compensation: o.stats.compensation_time.as_secs_f64(),
             filter: o.stats.filter_time.as_secs_f64(),
             display: display.as_secs_f64(),
             frame: frame.as_secs_f64(),
@@ -52,6 +55,7 @@ impl StageTimes {
             vpls: f(self.vpls, o.vpls),
             primary: f(self.primary, o.primary),
             shadow: f(self.shadow, o.shadow),
+            compensation: f(self.compensation, o.compensation),
             filter: f(self.filter, o.filter),
             display: f(self.display, o.display),
             frame: f(self.frame, o.frame),
@@ -299,12 +303,16 @@ impl FrameLoop {
         let (n, m) = s.frame.interleave;
         format!(
             "view {scene} ({mode}): {} frames {w}×{h}, {} VPLs {}, interleave {n}x{m}, clamp {}, filter {}, {}: \
-             {:.2} frames/s ({:.1} ms/frame: VPLs {:.1}, primary {:.1}, shadow {:.1}, filter {:.1}, display {:.1} ms), \
+             {:.2} frames/s ({:.1} ms/frame: VPLs {:.1}, primary {:.1}, shadow {:.1}{}, filter {:.1}, display {:.1} ms), \
              {:.2} Mrays/s, acceptance {}{}{}{}{}{}",
             t.frames,
             s.frame.vpls,
             self.session.sampler_name(),
-            if s.frame.clamp > 0.0 { format!("{}", s.frame.clamp) } else { "off".into() },
+            match (s.frame.clamp > 0.0, s.frame.compensate) {
+                (true, true) => format!("{} compensated", s.frame.clamp),
+                (true, false) => format!("{}", s.frame.clamp),
+                _ => "off".into(),
+            },
             if s.frame.filter.is_some() { "on" } else { "off" },
             chains_label(s.fresh_chains, s.reuse_frames),
             t.fps(),
@@ -312,6 +320,11 @@ impl FrameLoop {
             ms(pf.vpls),
             ms(pf.primary),
             ms(pf.shadow),
+            if s.frame.compensate && s.frame.clamp > 0.0 {
+                format!(" (compensation {:.1})", ms(pf.compensation))
+            } else {
+                String::new()
+            },
             ms(pf.filter),
             ms(pf.display),
             t.rays_per_second() / 1e6,

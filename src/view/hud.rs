@@ -1,5 +1,6 @@
 //! The heads-up display: a few lines of text over a darkened panel in the window's top-left
-//! corner: frames per second, milliseconds per stage, the sampler and its VPL count, rays per
+//! corner: frames per second, milliseconds per stage (and the clamp compensation's part of the
+//! gather), the sampler and its VPL count, rays per
 //! second, the acceptance rate of a Metropolis sampler, and the accumulated frame count.
 //! Drawn with the 5×7 font of [`super::font`] straight into the window buffer (a few thousand
 //! pixel writes per frame).
@@ -52,6 +53,7 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
     let ms = |s: f64| s * 1e3;
     let t = &d.times;
     let (n, m) = d.settings.interleave;
+    let compensated = d.settings.compensate && d.settings.clamp > 0.0;
     let mut out = vec![
         format!(
             "{:.1} FPS  {:.1} MS  {}X{}  {}",
@@ -62,20 +64,26 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
             d.sampler.to_uppercase()
         ),
         format!(
-            "VPL {:.1}{}  PRIM {:.1}  SHADOW {:.1}  FILTER {:.1}  DISP {:.1} MS",
+            "VPL {:.1}{}  PRIM {:.1}  SHADOW {:.1}{}  FILTER {:.1}  DISP {:.1} MS",
             ms(t.vpls),
             if d.vpls_ahead { " (AHEAD)" } else { "" },
             ms(t.primary),
             ms(t.shadow),
+            if compensated { format!(" (COMP {:.1})", ms(t.compensation)) } else { String::new() },
             ms(t.filter),
             ms(t.display)
         ),
         format!(
-            "{} VPLS ({} REUSED, {} ASKED)  {n}X{m}  CLAMP {}  FILTER {}",
+            "{} VPLS ({} REUSED, {} ASKED)  {n}X{m}  CLAMP {}{}  FILTER {}",
             d.vpls,
             d.vpls_reused,
             d.settings.vpls,
             if d.settings.clamp > 0.0 { format!("{}", d.settings.clamp) } else { "OFF".into() },
+            match (d.settings.clamp > 0.0, d.settings.compensate) {
+                (true, true) => " COMPENSATED",
+                (true, false) => " UNCOMPENSATED",
+                _ => "",
+            },
             if d.settings.filter.is_some() { "ON" } else { "OFF" }
         ),
         format!(
@@ -125,9 +133,17 @@ mod tests {
     fn the_hud_shows_every_required_quantity_and_draws_inside_the_buffer() {
         let d = HudData {
             fps: 12.5,
-            times: StageTimes { vpls: 0.001, primary: 0.02, shadow: 0.03, filter: 0.01, display: 0.002, frame: 0.08 },
+            times: StageTimes {
+                vpls: 0.001,
+                primary: 0.02,
+                shadow: 0.03,
+                compensation: 0.006,
+                filter: 0.01,
+                display: 0.002,
+                frame: 0.08,
+            },
             sampler: "mtmh",
-            settings: FrameSettings::interactive(),
+            settings: FrameSettings { compensate: true, ..FrameSettings::interactive() },
             fresh_chains: false,
             reuse_frames: 4,
             vpls: 250,
@@ -145,7 +161,8 @@ mod tests {
             "12.5 FPS",
             "VPL 1.0 (AHEAD)",
             "PRIM 20.0",
-            "SHADOW 30.0",
+            "SHADOW 30.0 (COMP 6.0)",
+            "CLAMP 300 COMPENSATED",
             "FILTER 10.0",
             "250 VPLS",
             "3.20 MRAYS/S",
