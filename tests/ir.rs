@@ -205,6 +205,8 @@ fn extremes_give_finite_images_without_panics() {
         ("1x1 image", builtin::cornell(), 1, 1, 64, (8, 8)),
         ("interleave 1x1", builtin::cornell(), 16, 16, 64, (1, 1)),
         ("interleave 16x16", builtin::cornell(), 20, 20, 300, (16, 16)),
+        ("scale 1e-3", builtin::cornell().scaled(1e-3), 16, 16, 64, (4, 4)),
+        ("scale 1e3", builtin::cornell().scaled(1e3), 16, 16, 64, (4, 4)),
     ];
     for (name, desc, w, h, vpls, inter) in cases {
         let (s, a) = scene(desc, w, h);
@@ -213,13 +215,16 @@ fn extremes_give_finite_images_without_panics() {
                 continue; // BIR would draw 10⁷ candidates: covered by SIR at this size.
             }
             let mut sampler = kind.build(64);
-            for clamp in [0.0, 1000.0] {
-                let settings = FrameSettings { vpls, interleave: inter, clamp, ..FrameSettings::interactive() };
+            for (clamp, compensate) in [(0.0, false), (1000.0, false), (1000.0, true), (10.0, true)] {
+                let settings =
+                    FrameSettings { vpls, interleave: inter, clamp, compensate, ..FrameSettings::interactive() };
                 let f = frame::render_frame(&s, &a, &s.camera, sampler.as_mut(), &settings, 1);
                 assert!(
                     f.image.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),
-                    "{name} {kind:?}: non-finite or negative pixel"
+                    "{name} {kind:?} clamp {clamp} compensate {compensate}: non-finite or negative pixel"
                 );
+                let e = f.stats.energy;
+                assert!(e.kept.is_finite() && e.removed.is_finite() && e.recovered.is_finite(), "{name} {kind:?}");
                 assert!(f.vpls.radiance.iter().all(|r| r.is_finite()), "{name} {kind:?}: non-finite VPL");
             }
         }

@@ -287,6 +287,9 @@ fn seed_spread(e: &Estimate) -> (f64, f64, f64, f64, f64) {
 /// its resolution is the seeds' spread, ~9 % of the mean there and ~2 % on deep-shaft. pt needs its 8 × 1536 spp: at 384
 /// its own heavy tail (light through the shaft is rare for camera paths too) put its mean 4–7 %
 /// below every MIR configuration on deep-shaft and failed the block test on pt's side.
+/// This test passed while the compensation's residual, estimated with MIR's own VPLs, still
+/// left 15 % of the slit scene's light out (its resolution there is ~25 %):
+/// `the_compensation_brings_back_what_the_chains_clamped_target_leaves_out` is the sharp check.
 #[test]
 fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
     for name in builtin::HARD_NAMES {
@@ -347,4 +350,122 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
             assert!(z > 3.0, "{name}: without compensation MIR should be darker (z = {z:.2})");
         }
     }
+}
+
+/// The options of `mirage render --mode mir` with no other flag (mtmh, 256 VPLs, 8×8
+/// interleave, clamp 300 compensated, discontinuity buffer on), at the given image size.
+fn default_render_options(w: u32, h: u32) -> mirage::options::RenderOptions {
+    use clap::Parser;
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        render: mirage::options::RenderArgs,
+    }
+    let (w, h) = (w.to_string(), h.to_string());
+    Cli::parse_from(["mirage", "--mode", "mir", "--width", &w, "--height", &h]).render.options().unwrap()
+}
+
+/// What a user gets from the default `mirage render` (MIR, clamp 300 compensated, filter on):
+/// on every built-in diffuse scene, easy and hard, the image mean over 8 seeds agrees with
+/// pt's. Checked two ways: within four standard errors of the difference (the seeds' spread
+/// is what resolves a bias), and, where that resolution is finer than 1 % of the mean, within
+/// 1 %. Without compensation the same renders are darker where the clamp acts much (on the
+/// slit and box scenes, by more than 3 standard errors).
+#[test]
+fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
+    let (w, h) = (32, 24);
+    let options = default_render_options(w, h);
+    assert!(options.frame.compensate && options.frame.clamp == 300.0 && options.frame.filter.is_some());
+    let mut unresolved = Vec::new();
+    for name in builtin::NAMES.into_iter().filter(|n| *n != "glass-sphere") {
+        let (s, a) = scene(builtin::by_name(name).unwrap(), w, h);
+        let hard = builtin::HARD_NAMES.contains(&name);
+        let imgs: Vec<Image> = (0..8)
+            .map(|b| {
+                let spp = if hard { 1536 } else { 512 };
+                let st = OfflineSettings { budget: Budget::Samples(spp), seed: 90 + b, ..options.offline };
+                offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image()
+            })
+            .collect();
+        let (r, se_r, ..) = seed_spread(&Estimate::from_batches(&imgs));
+        let run = |settings: &FrameSettings| {
+            let imgs: Vec<Image> = (0..8u64)
+                .map(|b| {
+                    let mut sampler = options.vpl_sampler.build_with(&options.sampler);
+                    let acc = Accumulation { budget: Budget::Samples(16), seed: 7 + 1000 * b, aovs: false };
+                    let (out, _) =
+                        frame::render_progressive(&s, &a, sampler.as_mut(), settings, acc, &ProgressBar::hidden());
+                    let img = out.film.image();
+                    assert_eq!(img.non_finite_count(), 0, "{name}");
+                    img
+                })
+                .collect();
+            seed_spread(&Estimate::from_batches(&imgs))
+        };
+        let (m, se, med, lo, hi) = run(&options.frame);
+        let sd = (se * se + se_r * se_r).sqrt();
+        let z = (m - r) / sd;
+        eprintln!(
+            "{name}: default render mean/pt {:.4} ± {:.4} (median {:.3}, {:.3}–{:.3}; pt ± {:.4}), z = {z:.2}",
+            m / r,
+            se / r,
+            med / r,
+            lo / r,
+            hi / r,
+            se_r / r
+        );
+        assert!(z.abs() < 4.0, "{name}: default render mean {m} vs pt {r} (z = {z:.2})");
+        if 4.0 * sd < 0.01 * r {
+            assert!((m - r).abs() < 0.01 * r, "{name}: default render mean {m} more than 1 % from pt {r}");
+        } else {
+            unresolved.push(format!("{name} (4 s.e. = {:.1} %)", 400.0 * sd / r));
+        }
+        if matches!(name, "ajar-door-thick" | "light-box-thick") {
+            let (m, se, ..) = run(&FrameSettings { compensate: false, ..options.frame });
+            let z = (r - m) / (se * se + se_r * se_r).sqrt();
+            eprintln!("{name}: uncompensated mean/pt {:.4} ± {:.4}, z = {z:.2}", m / r, se / r);
+            assert!(z > 3.0, "{name}: without compensation the default render should be darker (z = {z:.2})");
+        }
+    }
+    eprintln!("1 % not resolvable at this budget on: {}", unresolved.join(", "));
+}
+
+/// MIR's VPLs bring, by their normalisation, the chain target's clamped camera power P_c; the
+/// clamp compensation must add the rest. On the slit scene, where the clamped target leaves
+/// out 30 % of pt's light, P̂_c plus the light the compensation recovered, averaged over
+/// 32 seeds × 16 frames, equals pt's image luminance within four standard errors (one is
+/// ~2.5 % here, nearly all of it P̂_c's). The residual estimated with MIR's own VPLs
+/// (Kollig & Keller's recursion) recovered 0.157 of the 0.30 (sum 0.857, z ≈ −5 at this
+/// resolution); the path-traced residual recovers 0.287.
+#[test]
+fn the_compensation_brings_back_what_the_chains_clamped_target_leaves_out() {
+    let (s, a) = scene(builtin::by_name("ajar-door-thick").unwrap(), 32, 24);
+    let npix = s.camera.pixel_count() as f64;
+    let refs: Vec<f64> = (0..8).map(|b| pt(&s, &a, 1024, 120 + b, None).mean_luminance()).collect();
+    let (r, se_r) = mean_se(&refs);
+    let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::compensated(256) };
+    let (mut pcs, mut totals) = (vec![], vec![]);
+    for seed in 0..32u64 {
+        let mut mir = Mir::new(Bidirectional::default(), MirSettings::mtmh());
+        let (mut pc, mut total) = (0.0, 0.0);
+        for f in 0..16 {
+            let fr = frame::render_frame(&s, &a, &s.camera, &mut mir, &settings, 1000 * seed + f);
+            pc += mir.last.pc / npix / 16.0;
+            total += (mir.last.pc + fr.stats.energy.recovered) / npix / 16.0;
+        }
+        pcs.push(pc);
+        totals.push(total);
+    }
+    let (pc, _) = mean_se(&pcs);
+    let (m, se) = mean_se(&totals);
+    let z = (m - r) / (se * se + se_r * se_r).sqrt();
+    eprintln!("P_c/pt {:.3}, (P_c + recovered)/pt {:.4} ± {:.4}, z = {z:.2}", pc / r, m / r, se / r);
+    assert!(pc < 0.8 * r, "not vacuous: the clamped target leaves much out (P_c/pt = {:.3})", pc / r);
+    assert!(z.abs() < 4.0, "P_c + recovered = {m} vs pt {r} (z = {z:.2})");
+}
+
+fn mean_se(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (m, (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt())
 }

@@ -749,14 +749,14 @@ impl<'a> Gatherer<'a> {
         let mut compensation_time = Duration::ZERO;
         if let Some(seed) = self.compensate {
             let t = Instant::now();
-            let comp = super::compensate::Compensation { scene, accel, vpls, inter, g_max, min_d2 };
+            let comp = super::compensate::Compensation { scene, accel, g_max, min_d2 };
             let mut aov = compensation;
             // One stream per row, its pixels in order (rows are gathered whole, so the image
             // does not depend on the thread count).
             let mut sampler = IndependentSampler::for_stream(seed, TAG_COMPENSATE, y as u64);
             for (x, o) in out.iter_mut().enumerate() {
                 let c = match &receivers[x] {
-                    Some(r) => comp.residual(r, subsets.of(x as u32), &mut sampler, &mut st),
+                    Some(r) => comp.residual(r, &mut sampler, &mut st),
                     None => Vec3::ZERO,
                 };
                 energy.recovered += luminance(c) as f64;
