@@ -57,7 +57,8 @@ struct ReportArgs {
     /// Scenes (files or built-in names).
     #[arg(long, value_delimiter = ',', default_value = "cornell,ajar-door,left-right,direct-indirect,light-box")]
     scenes: Vec<String>,
-    /// Methods: pt, bdpt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh).
+    /// Methods: pt, bdpt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh, and a
+    /// final -uncompensated for any VPL method: its clamp not compensated).
     #[arg(long, value_delimiter = ',', default_value = "pt,bdpt,sir,bir,mtmh")]
     methods: Vec<String>,
     /// Time budgets in seconds (converge).
@@ -82,9 +83,23 @@ struct ReportArgs {
     /// median relMSE and its range over the runs, since one run hides a heavy tail.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     seeds: u32,
+    /// The frame workload of the VPL methods (converge): `default` (256 VPLs a frame at
+    /// --width × --height) or `paper` (papers/002 §7: 1024×768, 1024 VPLs a frame, 8×8
+    /// interleave; overrides --width and --height).
+    #[arg(long, value_enum, default_value_t = Workload::Default)]
+    workload: Workload,
     /// Write the markdown here (and SVG plots beside it); default: print only.
     #[arg(short, long)]
     output: Option<PathBuf>,
+}
+
+/// Frame workloads of the reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Workload {
+    /// The interactive defaults at the report's image size.
+    Default,
+    /// Segovia et al.'s measurements: 1024×768, 1024 VPLs, 8×8 interleave.
+    Paper,
 }
 
 fn main() -> ExitCode {
@@ -337,9 +352,13 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
     if args.times.iter().any(|t| !(*t > 0.0 && t.is_finite())) {
         bail!("--times must be positive numbers of seconds");
     }
-    let camera = CameraSettings { width: Some(args.width), height: Some(args.height), ..Default::default() };
-    // As `mirage render` draws: clamp compensated.
-    let frame_settings = FrameSettings { compensate: true, ..FrameSettings::interactive() };
+    let (width, height, vpls) = match args.workload {
+        Workload::Default => (args.width, args.height, FrameSettings::interactive().vpls),
+        Workload::Paper => (1024, 768, 1024),
+    };
+    let camera = CameraSettings { width: Some(width), height: Some(height), ..Default::default() };
+    // As `mirage render` draws: clamp compensated (methods with -uncompensated turn it off).
+    let frame_settings = FrameSettings { vpls, compensate: true, max_specular: 8, ..FrameSettings::interactive() };
     let mut md = String::new();
     let mut svgs = Vec::new();
     let machine = std::fs::read_to_string("/proc/cpuinfo")
@@ -353,8 +372,8 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
     md += &format!(
         "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer on. {} run(s) per cell.\n\n",
         rayon::current_num_threads(),
-        args.width,
-        args.height,
+        width,
+        height,
         args.reference_spp,
         frame_settings.vpls,
         frame_settings.interleave.0,

@@ -33,13 +33,24 @@ pub enum Method {
         sampler: VplSamplerArg,
         /// Its settings.
         config: SamplerConfig,
+        /// The clamp compensated (as `render` draws; suffix `-uncompensated` turns it off).
+        compensate: bool,
     },
 }
 
 impl Method {
     /// Parses `pt`, `bdpt`, `sir`, `sir-cdf`, `bir`, `mh`, `mtmh`, with optional suffixes
-    /// `-pss` (primary-sample-space kernel) and `-cdf` (light-source CDF) for mh / mtmh.
+    /// `-pss` (primary-sample-space kernel) and `-cdf` (light-source CDF) for mh / mtmh, and a
+    /// final `-uncompensated` for any VPL method (the clamp left uncompensated).
     pub fn parse(s: &str) -> Result<Method, String> {
+        let whole = s;
+        let (s, compensate) = match s.strip_suffix("-uncompensated") {
+            Some(base) => (base, false),
+            None => (s, true),
+        };
+        if !compensate && matches!(s, "pt" | "bdpt") {
+            return Err(format!("'{whole}': -uncompensated applies to VPL methods only"));
+        }
         let mut config = SamplerConfig::default();
         let sampler = match s {
             "pt" => return Ok(Method::Pt),
@@ -69,7 +80,7 @@ impl Method {
                 base
             }
         };
-        Ok(Method::Vpl { sampler, config })
+        Ok(Method::Vpl { sampler, config, compensate })
     }
 
     /// A label for tables.
@@ -77,13 +88,16 @@ impl Method {
         match self {
             Method::Pt => "pt".into(),
             Method::Bdpt => "bdpt".into(),
-            Method::Vpl { sampler, config } => {
+            Method::Vpl { sampler, config, compensate } => {
                 let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
                 if sampler.is_metropolis() {
                     l += if config.kernel == KernelArg::Pss { "-pss" } else { "-bidir" };
                     if config.light_cdf {
                         l += "-cdf";
                     }
+                }
+                if !compensate {
+                    l += "-uncompensated";
                 }
                 l
             }
@@ -127,10 +141,11 @@ pub fn run(
             let o = offline::render_bdpt(scene, accel, &offline, &opts, &hidden);
             Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
         }
-        Method::Vpl { sampler, config } => {
+        Method::Vpl { sampler, config, compensate } => {
             let mut s = sampler.build_with(config);
             let acc = Accumulation { budget, seed, aovs: false };
-            let (o, st) = frame::render_progressive(scene, accel, s.as_mut(), frame_settings, acc, &hidden);
+            let settings = FrameSettings { compensate: frame_settings.compensate && *compensate, ..*frame_settings };
+            let (o, st) = frame::render_progressive(scene, accel, s.as_mut(), &settings, acc, &hidden);
             Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: st.sampler.acceptance_rate() }
         }
     }
@@ -338,8 +353,8 @@ pub fn sampler_row(
     reference: &Image,
     frame_settings: &FrameSettings,
 ) -> SamplerRow {
-    let Method::Vpl { sampler, config } = method else { panic!("sampler rows need a VPL method") };
-    let settings = FrameSettings { vpls: m, ..*frame_settings };
+    let Method::Vpl { sampler, config, compensate } = method else { panic!("sampler rows need a VPL method") };
+    let settings = FrameSettings { vpls: m, compensate: frame_settings.compensate && *compensate, ..*frame_settings };
     let (mut time, mut vpls, mut rel, mut acc, mut prop) = (0.0, 0.0, 0.0, 0u64, 0u64);
     for f in 0..frames {
         let mut s = sampler.build_with(config);
@@ -402,5 +417,16 @@ mod tests {
         let md = converge_markdown(&rows, &[1.0]);
         assert!(md.contains("| s | mtmh | 0.0200 [0.0100–0.5000] (7) |"), "{md}");
         assert!(md.contains("| s | sir | 0.0300 (7) |"), "{md}");
+    }
+
+    #[test]
+    fn methods_parse_with_their_suffixes_and_label_back() {
+        for m in ["pt", "bdpt", "sir", "sir-uncompensated", "mtmh-bidir", "mtmh-pss-cdf-uncompensated", "mh-pss"] {
+            let label = Method::parse(m).unwrap().label();
+            assert_eq!(Method::parse(&label).unwrap(), Method::parse(m).unwrap(), "{m} → {label}");
+        }
+        assert!(matches!(Method::parse("sir-uncompensated"), Ok(Method::Vpl { compensate: false, .. })));
+        assert!(Method::parse("pt-uncompensated").unwrap_err().contains("VPL methods only"));
+        assert!(Method::parse("mtmh-foo").is_err());
     }
 }

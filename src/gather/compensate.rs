@@ -89,11 +89,14 @@ impl Compensation<'_> {
         }
         let Some(recv) = recv else { return total };
         let keep = (1.0 - g_max * d2 / (cos_x * recv.bsdf.abs_cos(wi))).max(0.0);
-        if keep > 0.0 {
-            // The light y reflects towards x: the path tracer's estimate along the same ray,
-            // less the emission it counts at y (weighted above).
+        // The light y reflects towards x, weighted by `keep`: traced with probability `keep`
+        // and then counted at weight 1 (Russian roulette: the same expectation, and no path
+        // where the clamp removed little).
+        if keep > 0.0 && sampler.next_1d() < keep {
+            // The path tracer's estimate along the same ray, less the emission it counts at y
+            // (weighted above).
             let (l, _) = pt::radiance(scene, accel, ray, sampler, MAX_DEPTH, st);
-            total += weight * keep * (l - emitted);
+            total += weight * (l - emitted);
         }
         total
     }
