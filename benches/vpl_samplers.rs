@@ -20,7 +20,7 @@ fn bench_samplers(c: &mut Criterion) {
         for m in [256usize, 1024] {
             group.throughput(Throughput::Elements(m as u64));
             for method in methods {
-                let Method::Vpl { sampler, config } = Method::parse(method).unwrap() else { unreachable!() };
+                let Method::Vpl { sampler, config, .. } = Method::parse(method).unwrap() else { unreachable!() };
                 let mut s = sampler.build_with(&config);
                 let mut seed = 0u64;
                 group.bench_function(format!("{name}/{method}/m{m}"), |b| {
