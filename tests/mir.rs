@@ -265,6 +265,28 @@ fn parallel_chains_give_the_same_vpls_on_one_and_two_threads() {
     assert_eq!(one, run(2));
 }
 
+/// Eight independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler,
+/// checked finite, as batches.
+fn seed_runs(
+    name: &str,
+    s: &Scene,
+    a: &Accel,
+    sampler: impl Fn() -> Box<dyn VplSampler>,
+    settings: &FrameSettings,
+    seed0: u64,
+) -> Estimate {
+    let imgs: Vec<Image> = (0..8u64)
+        .map(|b| {
+            let acc = Accumulation { budget: Budget::Samples(16), seed: seed0 + 1000 * b, aovs: false };
+            let (out, _) = frame::render_progressive(s, a, sampler().as_mut(), settings, acc, &ProgressBar::hidden());
+            let img = out.film.image();
+            assert_eq!(img.non_finite_count(), 0, "{name}");
+            img
+        })
+        .collect();
+    Estimate::from_batches(&imgs)
+}
+
 /// Mean luminance of each batch image, its mean and standard error, median and range.
 fn seed_spread(e: &Estimate) -> (f64, f64, f64, f64, f64) {
     let mut v: Vec<f64> = e.images.iter().map(|i| i.mean_luminance()).collect();
@@ -309,18 +331,8 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
         let (r, se_r, ..) = seed_spread(&reference);
         let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::compensated(256) };
         let run = |kind: VplSamplerArg, kernel: KernelArg, settings: &FrameSettings| {
-            let imgs: Vec<Image> = (0..8u64)
-                .map(|b| {
-                    let mut sampler = kind.build_with(&SamplerConfig { kernel, ..Default::default() });
-                    let acc = Accumulation { budget: Budget::Samples(16), seed: 31 + 1000 * b, aovs: false };
-                    let (out, _) =
-                        frame::render_progressive(&s, &a, sampler.as_mut(), settings, acc, &ProgressBar::hidden());
-                    let img = out.film.image();
-                    assert_eq!(img.non_finite_count(), 0, "{name}");
-                    img
-                })
-                .collect();
-            Estimate::from_batches(&imgs)
+            let config = SamplerConfig { kernel, ..Default::default() };
+            seed_runs(name, &s, &a, || kind.build_with(&config), settings, 31)
         };
         for (kind, kernel) in [
             (VplSamplerArg::Mtmh, KernelArg::Bidir),
@@ -389,18 +401,7 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
             .collect();
         let (r, se_r, ..) = seed_spread(&Estimate::from_batches(&imgs));
         let run = |settings: &FrameSettings| {
-            let imgs: Vec<Image> = (0..8u64)
-                .map(|b| {
-                    let mut sampler = options.vpl_sampler.build_with(&options.sampler);
-                    let acc = Accumulation { budget: Budget::Samples(16), seed: 7 + 1000 * b, aovs: false };
-                    let (out, _) =
-                        frame::render_progressive(&s, &a, sampler.as_mut(), settings, acc, &ProgressBar::hidden());
-                    let img = out.film.image();
-                    assert_eq!(img.non_finite_count(), 0, "{name}");
-                    img
-                })
-                .collect();
-            seed_spread(&Estimate::from_batches(&imgs))
+            seed_spread(&seed_runs(name, &s, &a, || options.vpl_sampler.build_with(&options.sampler), settings, 7))
         };
         let (m, se, med, lo, hi) = run(&options.frame);
         let sd = (se * se + se_r * se_r).sqrt();
