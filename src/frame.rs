@@ -48,6 +48,11 @@ pub struct FrameSettings {
     /// Keep each pixel's compensation term apart as well ([`Frame::compensation`]; for the
     /// EXR's `compensation` layer).
     pub compensation_aov: bool,
+    /// Trace the compensation at one pixel in this many (a diagonal pattern whose phase changes
+    /// with the frame's seed; 2: a checkerboard), its residual weighted by the stride: the same
+    /// expectation at a fraction of the rays, with more variance for the filter to average
+    /// (interleaved sampling of the residual, as the VPLs are interleaved). 1: every pixel.
+    pub compensation_stride: u32,
 }
 
 impl FrameSettings {
@@ -70,6 +75,7 @@ impl FrameSettings {
             compensate: false,
             spread_small_vpls: true,
             compensation_aov: false,
+            compensation_stride: 1,
         }
     }
 
@@ -274,6 +280,7 @@ pub fn gather_frame_reusing(
         min_distance: settings.min_distance,
         compensate: settings.compensate,
         compensation_aov: settings.compensation_aov,
+        compensation_stride: settings.compensation_stride,
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
         gbuffer: camera_rays.gbuffer,
         ratio_planes_on_reuse: recorded,

@@ -56,30 +56,57 @@ pub struct Compensation<'a> {
     pub min_d2: f32,
 }
 
+/// A compensation ray sampled at a receiver.
+#[derive(Clone, Copy, Debug)]
+pub struct ResidualRay {
+    /// Origin, offset off the receiver's surface towards `dir`.
+    pub origin: Vec3,
+    /// Unit direction, sampled from the receiver's BSDF.
+    pub dir: Vec3,
+    /// |cos θ_x| at the receiver (shading normal).
+    pub cos_x: f32,
+    /// Receiver throughput × BSDF × cosine / pdf along `dir`.
+    pub weight: Vec3,
+}
+
 impl Compensation<'_> {
     /// The residual radiance towards `r.wo` of receiver `r` (see the module doc), including
     /// `r.beta`.
     pub fn residual(&self, r: &Receiver, sampler: &mut impl Sampler, st: &mut RayStats) -> Vec3 {
-        let Compensation { scene, accel, g_max, min_d2 } = *self;
-        if !g_max.is_finite() || g_max <= 0.0 {
-            return Vec3::ZERO;
+        match self.sample_ray(r, sampler) {
+            Some(ray) => self.trace(r.sp.p, &ray, sampler, st),
+            None => Vec3::ZERO,
         }
+    }
+
+    /// Receiver `r`'s compensation ray, sampled from its BSDF (two samples: lobe, direction);
+    /// None where nothing was clamped along it (a specular sample) or no direction was found.
+    pub fn sample_ray(&self, r: &Receiver, sampler: &mut impl Sampler) -> Option<ResidualRay> {
         let (u_lobe, u) = (sampler.next_1d(), sampler.next_2d());
-        let Some(bs) = r.bsdf.sample(r.wo, u_lobe, u, TransportMode::Radiance) else { return Vec3::ZERO };
+        let bs = r.bsdf.sample(r.wo, u_lobe, u, TransportMode::Radiance)?;
         if bs.delta {
+            return None;
+        }
+        let cos_x = r.bsdf.abs_cos(bs.wi);
+        let origin = offset_origin(&r.sp, &self.scene.mesh.corners(r.sp.tri), bs.wi);
+        Some(ResidualRay { origin, dir: bs.wi, cos_x, weight: r.beta * bs.f * (cos_x / bs.pdf_w) })
+    }
+
+    /// The residual along `ray`, sampled at the receiver at `p`.
+    pub fn trace(&self, p: Vec3, ray: &ResidualRay, sampler: &mut impl Sampler, st: &mut RayStats) -> Vec3 {
+        let Compensation { scene, accel, g_max, min_d2 } = *self;
+        if !g_max.is_finite() || g_max <= 0.0 || !(ray.cos_x > 0.0) {
             return Vec3::ZERO;
         }
-        let wi = bs.wi;
-        let cos_x = r.bsdf.abs_cos(wi);
-        let origin = offset_origin(&r.sp, &scene.mesh.corners(r.sp.tri), wi);
+        let ResidualRay { origin, dir: wi, cos_x, weight } = *ray;
         st.closest += 1;
-        let Some(hit) = accel.intersect(origin, wi, 1.0 / g_max.sqrt()) else { return Vec3::ZERO };
+        // G = cos θ_x cos θ_y / d² > B needs d < √(cos θ_x / B): nothing further counts.
+        let Some(hit) = accel.intersect(origin, wi, (cos_x / g_max).sqrt()) else { return Vec3::ZERO };
         let y = scene.surface_point(hit.tri, hit.b1, hit.b2);
-        let d2 = (y.p - r.sp.p).length_squared();
+        let d2 = (y.p - p).length_squared();
         if !(d2 > 0.0) || d2 < min_d2 {
             return Vec3::ZERO;
         }
-        let weight = r.beta * bs.f * (cos_x / bs.pdf_w);
         let ray = Ray { origin, dir: wi };
         let (recv, emitted) = receiver_from_hit(scene, accel, ray, Some(hit), &mut || 0.5, 0, st);
         let mut total = Vec3::ZERO;

@@ -50,6 +50,8 @@ pub struct OnePass<'a> {
     pub compensate: bool,
     /// Also return each pixel's compensation term alone ([`Gathered::compensation`]).
     pub compensation_aov: bool,
+    /// Compensate one pixel in this many ([`crate::frame::FrameSettings::compensation_stride`]).
+    pub compensation_stride: u32,
     /// Fill the discontinuity buffer's planes of this layout too (see [`Gathered::planes`]).
     pub planes: Option<PlaneLayout>,
     /// Trace the G-buffer, or reuse one held from an earlier pass ([`GBufferUse`]).
@@ -201,13 +203,14 @@ pub fn trace_and_gather(
         min_distance,
         compensate,
         compensation_aov,
+        compensation_stride,
         planes: layout,
         gbuffer: use_gbuffer,
         ratio_planes_on_reuse,
     } = *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing)
-        .compensating(compensate.then_some(seed));
+        .compensating(compensate.then_some(seed), compensation_stride);
     let (w, h) = (camera.width, camera.height);
     let Lent { gbuffer, light, planes, mut held } = lent;
     let band_len = (rays.band_rows() * w) as usize;
@@ -494,6 +497,7 @@ mod tests {
                     min_distance,
                     compensate: false,
                     compensation_aov: false,
+                    compensation_stride: 1,
                     planes: Some(layout),
                     gbuffer: GBufferUse::Trace,
                     ratio_planes_on_reuse: false,
@@ -623,6 +627,7 @@ mod tests {
                     min_distance: 0.0,
                     compensate: false,
                     compensation_aov: false,
+                    compensation_stride: 1,
                     planes: Some(layout),
                     gbuffer,
                     ratio_planes_on_reuse: false,

@@ -22,7 +22,12 @@ use crate::stats::RayStats;
 use crate::vpl::set::VplLobe;
 use crate::vpl::transfer::{Receiver, SHADOW_T_MAX, shadow_segment, unshadowed};
 use crate::vpl::{TWO_SIDED, VplSet};
-use std::f32::consts::FRAC_1_PI;
+use std::f32::consts::{FRAC_1_PI, PI};
+
+use super::compensate::ResidualRay;
+use crate::bsdf::frame::Frame;
+use crate::sampling::Sampler;
+use crate::sampling::warp::sample_cosine_hemisphere;
 
 /// Energy bookkeeping of one gather.
 #[derive(Clone, Copy, Debug, Default)]
@@ -243,6 +248,27 @@ impl Prepared {
         let (c, _) = c?;
         let target = set.position[i];
         Some((c, self.origin_towards(target), target))
+    }
+
+    /// The clamp compensation's ray of a Lambertian receiver: [`Compensation::sample_ray`]
+    /// without the general BSDF (a cosine-distributed direction about the shading normal on
+    /// the viewer's side, kept when it leaves on the viewer's geometric side too; weight ρ·β).
+    /// Same two samples consumed, same distribution. None for other BSDFs.
+    #[inline]
+    fn compensation_ray(&self, sampler: &mut impl Sampler) -> Option<Option<ResidualRay>> {
+        let l = self.lambert.as_ref()?;
+        let (_, u) = (sampler.next_1d(), sampler.next_2d());
+        if l.wo_ns == 0.0 {
+            return Some(None);
+        }
+        let local = sample_cosine_hemisphere(u);
+        let n = if l.wo_ns > 0.0 { l.ns } else { -l.ns };
+        let wi = Frame::from_normal(n).to_world(local);
+        if !(local.z > 0.0) || !(l.wo_ng * wi.dot(l.ng_o) > 0.0) {
+            return Some(None);
+        }
+        let weight = l.beta * l.f * PI;
+        Some(Some(ResidualRay { origin: self.origin_towards(self.p + wi), dir: wi, cos_x: local.z, weight }))
     }
 
     /// The shadow-ray origin towards `target`, as [`shadow_segment`] places it.
@@ -524,6 +550,8 @@ pub(crate) struct Gatherer<'a> {
     chunks: Option<Vec<Vec<VplChunk>>>,
     /// Seed of the clamp compensation's paths, when it is on ([`super::compensate`]).
     compensate: Option<u64>,
+    /// One pixel in this many is compensated, at this weight (≥ 1).
+    stride: u32,
 }
 
 impl<'a> Gatherer<'a> {
@@ -540,13 +568,26 @@ impl<'a> Gatherer<'a> {
         let chunks = (matches!(tracing, Tracing::Single | Tracing::PrimaryPackets) && chunkable(vpls))
             .then(|| chunk_subsets(vpls, inter));
         let min_d2 = min_distance * min_distance;
-        Gatherer { scene, accel, vpls, inter, g_max, min_d2, tracing, diffuse_vpls, chunks, compensate: None }
+        Gatherer {
+            scene,
+            accel,
+            vpls,
+            inter,
+            g_max,
+            min_d2,
+            tracing,
+            diffuse_vpls,
+            chunks,
+            compensate: None,
+            stride: 1,
+        }
     }
 
     /// Adds the clamp compensation (a residual path per pixel, seeded by `seed`) when `seed` is
-    /// given and the gather clamps.
-    pub(crate) fn compensating(self, seed: Option<u64>) -> Self {
-        Gatherer { compensate: seed.filter(|_| self.g_max.is_finite()), ..self }
+    /// given and the gather clamps; at one pixel in `stride` only, weighted by `stride` (pixel
+    /// (x, y) when (x + y + seed) mod stride = 0).
+    pub(crate) fn compensating(self, seed: Option<u64>, stride: u32) -> Self {
+        Gatherer { compensate: seed.filter(|_| self.g_max.is_finite()), stride: stride.max(1), ..self }
     }
 
     /// The shadow ray from the prepared receiver `pt` of pixel x to VPL i, with its
@@ -574,8 +615,7 @@ impl<'a> Gatherer<'a> {
     /// Whether [`Gatherer::row`] needs every receiver (the packet groupings, or VPLs outside the
     /// eight-VPL kernel), not only the non-Lambertian ones.
     pub(crate) fn keeps_all_receivers(&self) -> bool {
-        self.compensate.is_some()
-            || !self.inter.everywhere.is_empty()
+        !self.inter.everywhere.is_empty()
             || !matches!((self.tracing, &self.chunks), (Tracing::Single | Tracing::PrimaryPackets, Some(_)))
     }
 
@@ -754,10 +794,31 @@ impl<'a> Gatherer<'a> {
             // One stream per row, its pixels in order (rows are gathered whole, so the image
             // does not depend on the thread count).
             let mut sampler = IndependentSampler::for_stream(seed, TAG_COMPENSATE, y as u64);
+            let stride = self.stride as u64;
+            let phase = (y as u64 + seed % stride) % stride;
             for (x, o) in out.iter_mut().enumerate() {
-                let c = match &receivers[x] {
-                    Some(r) => comp.residual(r, &mut sampler, &mut st),
-                    None => Vec3::ZERO,
+                let c = if !(x as u64 + phase).is_multiple_of(stride) {
+                    Vec3::ZERO
+                } else {
+                    // Lambertian receivers through their prepared form (the G-buffer keeps
+                    // only that), the others through their BSDF.
+                    let local = match prepared {
+                        Some(_) => None,
+                        None => receivers[x].as_ref().map(|r| Prepared::new(scene, r)),
+                    };
+                    let pt = match prepared {
+                        Some(p) => p[x].as_ref(),
+                        None => local.as_ref(),
+                    };
+                    let ray = match (pt.and_then(|p| p.compensation_ray(&mut sampler)), &receivers[x]) {
+                        (Some(ray), _) => ray.map(|ray| (pt.map_or(Vec3::ZERO, |p| p.p), ray)),
+                        (None, Some(r)) => comp.sample_ray(r, &mut sampler).map(|ray| (r.sp.p, ray)),
+                        (None, None) => None,
+                    };
+                    match ray {
+                        Some((p, ray)) => comp.trace(p, &ray, &mut sampler, &mut st) * self.stride as f32,
+                        None => Vec3::ZERO,
+                    }
                 };
                 energy.recovered += luminance(c) as f64;
                 *o += c;
@@ -1002,5 +1063,81 @@ mod tests {
             }
         }
         assert!(reported > 1_000, "only {reported} contributions");
+    }
+
+    /// The Lambertian receivers' compensation rays ([`Prepared::compensation_ray`]) have the
+    /// distribution of the general BSDF-sampled ones ([`Compensation::sample_ray`]): for flat
+    /// walls and a smooth-shaded sphere (shading normal ≠ geometric normal, where the two side
+    /// tests matter), the means of the weight, of weight × direction and of weight × cos θ_x
+    /// agree within 4.5 standard errors, receiver by receiver; the origin is the one
+    /// `offset_origin` gives for the direction.
+    #[test]
+    fn lambertian_compensation_rays_are_distributed_as_the_bsdf_samples() {
+        let (scene, accel, _, gbuf) = traced(matte_sphere(), (24, 24), 5);
+        let comp = super::super::compensate::Compensation { scene: &scene, accel: &accel, g_max: 1.0, min_d2: 0.0 };
+        let mut checked = 0;
+        let mut smooth = 0;
+        // Directions each way rejects (below the shading horizon or the geometric one), summed.
+        let (mut rejected, mut draws) = ((0u64, 0u64), 0u64);
+        // Every smooth-shaded receiver, and one flat one in ten.
+        let is_smooth = |r: &Receiver| r.bsdf.frame.n.dot(r.sp.ng).abs() < 0.9999;
+        let all: Vec<&Receiver> = gbuf.receivers.iter().flatten().collect();
+        let picked = all.iter().enumerate().filter(|(i, r)| is_smooth(r) || i % 10 == 0);
+        for (_, &r) in picked.take(80) {
+            let pt = Prepared::new(&scene, r);
+            assert!(pt.lambert.is_some(), "matte scene");
+            smooth += usize::from(is_smooth(r));
+            // Per sample: weight luminance, and that times dir.x, dir.y, dir.z, cos θ_x.
+            let moments = |fast: bool, seed: u64| {
+                let mut sampler = IndependentSampler::new(seed);
+                let n = 20_000;
+                let (mut sum, mut sq) = ([0.0f64; 5], [0.0f64; 5]);
+                let mut rejected = 0u64;
+                for _ in 0..n {
+                    let ray = if fast {
+                        pt.compensation_ray(&mut sampler).unwrap()
+                    } else {
+                        comp.sample_ray(r, &mut sampler)
+                    };
+                    let Some(ray) = ray else {
+                        rejected += 1;
+                        continue;
+                    };
+                    if fast {
+                        let o = offset_origin(&r.sp, &scene.mesh.corners(r.sp.tri), ray.dir);
+                        assert_eq!(ray.origin, o);
+                    }
+                    let w = luminance(ray.weight) as f64;
+                    let v = [w, w * ray.dir.x as f64, w * ray.dir.y as f64, w * ray.dir.z as f64, w * ray.cos_x as f64];
+                    for k in 0..5 {
+                        sum[k] += v[k];
+                        sq[k] += v[k] * v[k];
+                    }
+                }
+                let nf = n as f64;
+                let m = std::array::from_fn::<(f64, f64), 5, _>(|k| {
+                    let m = sum[k] / nf;
+                    (m, ((sq[k] / nf - m * m).max(0.0) / nf).sqrt())
+                });
+                (m, rejected)
+            };
+            let ((a, rej_a), (b, rej_b)) = (moments(true, 1), moments(false, 2));
+            rejected.0 += rej_a;
+            rejected.1 += rej_b;
+            draws += 20_000;
+            for k in 0..5 {
+                // (The weight ρ·β has no variance: its rounding, 10⁻⁶, is the floor.)
+                let se = (a[k].1 * a[k].1 + b[k].1 * b[k].1).sqrt().max(1e-6 * a[k].0.abs()).max(1e-9);
+                let z = (a[k].0 - b[k].0) / se;
+                assert!(z.abs() < 4.5, "receiver at {:?}, moment {k}: {} vs {} (z {z:.1})", r.sp.p, a[k].0, b[k].0);
+            }
+            checked += 1;
+        }
+        assert!(checked >= 40 && smooth >= 20, "{checked} receivers, {smooth} smooth-shaded");
+        // The same rejection rate (binomial z), and some rejections to compare.
+        let (pa, pb) = (rejected.0 as f64 / draws as f64, rejected.1 as f64 / draws as f64);
+        let p = 0.5 * (pa + pb);
+        let z = (pa - pb) / (2.0 * p * (1.0 - p) / draws as f64).sqrt();
+        assert!(rejected.1 > 50 && z.abs() < 4.5, "rejected {rejected:?} of {draws} each (z {z:.1})");
     }
 }

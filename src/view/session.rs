@@ -171,7 +171,8 @@ impl Default for SessionSettings {
         SessionSettings {
             sampler: super::args::default_sampler(),
             max_depth: 128,
-            frame: FrameSettings::interactive(),
+            // The clamp compensated (key B), at one pixel in two: frame time.
+            frame: FrameSettings { compensate: true, compensation_stride: 2, ..FrameSettings::interactive() },
             seed: 0,
             fresh_chains: false,
             reuse_frames: 4,
