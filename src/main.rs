@@ -160,7 +160,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     }
     let pb = progress_bar(args.quiet);
     pb.set_message(format!("{} {}", options.mode.name(), source.name()));
-    let (out, frame_stats) = render::render(&scene, &accel, &options, &pb);
+    let render::Rendered { out, frame: frame_stats, pssmlt } = render::render(&scene, &accel, &options, &pb);
     let image = out.film.image();
     let aovs = out.film.aov_images();
     // The compensation layer only where a VPL mode compensated the clamp.
@@ -211,6 +211,18 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         exr_path.display(),
         png_path.display()
     );
+    if let Some(m) = pssmlt {
+        let (large, small) = m.rejected();
+        println!(
+            "  {} chains, b = {:.4e} from {} bootstrap paths ({} non-zero); rejected: large steps {:.1} %, small steps {:.1} %",
+            options.pssmlt.chains,
+            m.b,
+            options.pssmlt.bootstrap,
+            m.bootstrap_nonzero,
+            100.0 * large,
+            100.0 * small
+        );
+    }
     if let Some(fs) = frame_stats {
         for w in &fs.sampler.warnings {
             eprintln!("mirage: warning: {w}");

@@ -29,6 +29,11 @@ pub enum Mode {
     /// Metropolis instant radiosity (the default): VPLs from an MH or MTMH chain over complete
     /// paths (--vpl-sampler mh|mtmh, --kernel, --candidates), gathered like ir.
     Mir,
+    /// Primary-sample-space Metropolis light transport (Kelemen et al. 2002) over the
+    /// bidirectional path sampler, one path depth per chain with the strategy chosen inside the
+    /// chain (multiplexed, as pbrt-v4); --mlt-chains, --bootstrap, --large-step, --sigma. For
+    /// light that arrives through slits and holes, and caustics.
+    Pssmlt,
 }
 
 /// Mutation kernels of the MIR chains.
@@ -238,6 +243,7 @@ impl Mode {
             Mode::Bdpt => "bdpt",
             Mode::Ir => "ir",
             Mode::Mir => "mir",
+            Mode::Pssmlt => "pssmlt",
         }
     }
 }
@@ -360,6 +366,19 @@ pub struct RenderArgs {
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
+    /// pssmlt: independent Markov chains (the count, not the thread count, fixes the image).
+    #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().chains)]
+    pub mlt_chains: usize,
+    /// pssmlt: independent paths that estimate the image's brightness (the normalisation b)
+    /// and from which the chains start, chosen ∝ their contribution.
+    #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().bootstrap)]
+    pub bootstrap: usize,
+    /// pssmlt: probability of a large step (every random number drawn anew).
+    #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().large_step)]
+    pub large_step: f32,
+    /// pssmlt: standard deviation of a small step of each random number.
+    #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().sigma)]
+    pub sigma: f32,
     /// Also write albedo, normal and depth layers into the EXR.
     #[arg(long)]
     pub aov: bool,
@@ -416,6 +435,8 @@ pub struct RenderOptions {
     pub sampler: SamplerConfig,
     /// ir: the frame pipeline settings.
     pub frame: crate::frame::FrameSettings,
+    /// pssmlt: the chains' settings.
+    pub pssmlt: crate::offline::pssmlt::PssmltSettings,
 }
 
 impl RenderArgs {
@@ -482,6 +503,13 @@ impl RenderArgs {
                 self.max_depth
             )));
         }
+        let pssmlt = crate::offline::pssmlt::PssmltSettings {
+            chains: self.mlt_chains,
+            bootstrap: self.bootstrap,
+            large_step: self.large_step,
+            sigma: self.sigma,
+        };
+        pssmlt.validate().map_err(OptionsError)?;
         let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,
             FilterArg::Tent => FilterKind::Tent,
@@ -513,6 +541,7 @@ impl RenderArgs {
                 compensation_stride: self.gather.compensate_stride.unwrap_or(1),
                 ..self.gather.frame_settings()
             },
+            pssmlt,
         })
     }
 }

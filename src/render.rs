@@ -12,6 +12,7 @@ use crate::accel::Accel;
 use crate::frame::{self, FrameStats};
 use crate::load::{self, LoadError, builtin};
 use crate::offline::bdpt::{BdptOptions, StrategyFilter};
+use crate::offline::pssmlt::{self, PssmltStats};
 use crate::offline::{self, RenderOutput};
 use crate::options::{Mode, RenderOptions};
 use crate::scene::{CameraSettings, Scene, SceneError};
@@ -104,25 +105,35 @@ pub fn focus_at(scene: &mut Scene, accel: &Accel, at: Vec2) -> Result<(), Prepar
     Ok(())
 }
 
-/// Runs the requested mode; VPL modes also return their per-stage statistics.
-pub fn render(
-    scene: &Scene,
-    accel: &Accel,
-    options: &RenderOptions,
-    progress: &ProgressBar,
-) -> (RenderOutput, Option<FrameStats>) {
+/// What a render produced, with the statistics of the mode that made it.
+pub struct Rendered {
+    /// Film, ray counts, time.
+    pub out: RenderOutput,
+    /// VPL modes: per-stage statistics.
+    pub frame: Option<FrameStats>,
+    /// pssmlt: the chains' statistics.
+    pub pssmlt: Option<PssmltStats>,
+}
+
+/// Runs the requested mode.
+pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &ProgressBar) -> Rendered {
+    let plain = |out| Rendered { out, frame: None, pssmlt: None };
     match options.mode {
-        Mode::Pt => (offline::render_pt(scene, accel, &options.offline, progress), None),
+        Mode::Pt => plain(offline::render_pt(scene, accel, &options.offline, progress)),
         Mode::Bdpt => {
             let opts = BdptOptions { max_depth: options.offline.max_depth, only: None, path_edges: None };
-            (offline::render_bdpt(scene, accel, &options.offline, &opts, progress), None)
+            plain(offline::render_bdpt(scene, accel, &options.offline, &opts, progress))
+        }
+        Mode::Pssmlt => {
+            let (out, st) = pssmlt::render_pssmlt(scene, accel, &options.offline, &options.pssmlt, progress);
+            Rendered { out, frame: None, pssmlt: Some(st) }
         }
         Mode::Ir | Mode::Mir => {
             let mut sampler = options.vpl_sampler.build_with(&options.sampler);
             let o = &options.offline;
             let acc = frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs };
             let (out, stats) = frame::render_progressive(scene, accel, sampler.as_mut(), &options.frame, acc, progress);
-            (out, Some(stats))
+            Rendered { out, frame: Some(stats), pssmlt: None }
         }
     }
 }

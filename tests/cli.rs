@@ -76,7 +76,7 @@ fn every_scene_file_renders_in_every_mode() {
     assert!(files.len() >= 8, "{files:?}");
     let dir = tmp("scenes");
     for f in &files {
-        for mode in ["pt", "bdpt", "ir"] {
+        for mode in ["pt", "bdpt", "ir", "pssmlt"] {
             let out = dir.join(format!("{}-{mode}.exr", f.file_stem().unwrap().to_string_lossy()));
             let o = mirage(&[
                 "render",
@@ -176,6 +176,10 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         (vec!["render", "--mode", "ir", "--vpls", "0"], "--vpls"),
         (vec!["render", "--mode", "ir", "--clamp", "-1"], "--clamp"),
         (vec!["render", "--chains", "0"], "--chains"),
+        (vec!["render", "--mode", "pssmlt", "--mlt-chains", "0"], "--mlt-chains"),
+        (vec!["render", "--mode", "pssmlt", "--bootstrap", "0"], "--bootstrap"),
+        (vec!["render", "--mode", "pssmlt", "--large-step", "0"], "--large-step"),
+        (vec!["render", "--mode", "pssmlt", "--sigma", "NaN"], "--sigma"),
         (vec!["render", "--fov-y", "200"], "field of view"),
         (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
     ] {

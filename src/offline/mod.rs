@@ -7,6 +7,7 @@
 //! count for a sample budget.
 
 pub mod bdpt;
+pub mod pssmlt;
 pub mod pt;
 
 use std::time::{Duration, Instant};

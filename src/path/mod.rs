@@ -9,4 +9,6 @@ pub mod walk;
 
 pub use connect::{Connection, connect, mis_weight, unoccluded};
 pub use vertex::{NO_TRI, Vertex, VertexKind, geometry, shading_correction};
-pub use walk::{RR_START, camera_subpath, light_subpath, light_subpath_with, random_walk};
+pub use walk::{
+    RR_START, camera_subpath, camera_subpath_exact, light_subpath, light_subpath_exact, light_subpath_with, random_walk,
+};

@@ -30,6 +30,35 @@ pub fn camera_subpath(
     path: &mut Vec<Vertex>,
     stats: &mut RayStats,
 ) {
+    camera_walk(scene, accel, raster, sampler, max_vertices, true, path, stats);
+}
+
+/// [`camera_subpath`] without Russian roulette: the walk ends only at `max_vertices`, a miss or
+/// absorption (for samplers that fix the path length, as PSSMLT's chains do: roulette would
+/// only end paths they need).
+pub fn camera_subpath_exact(
+    scene: &Scene,
+    accel: &Accel,
+    raster: Vec2,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
+    camera_walk(scene, accel, raster, sampler, max_vertices, false, path, stats);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn camera_walk(
+    scene: &Scene,
+    accel: &Accel,
+    raster: Vec2,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    roulette: bool,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
     path.clear();
     if max_vertices == 0 {
         return;
@@ -38,7 +67,8 @@ pub fn camera_subpath(
     let ray = cam.generate_ray(raster, sampler.next_2d());
     let (pdf_pos, pdf_dir) = cam.pdf_we(ray.dir);
     path.push(Vertex::camera(ray.origin, cam.forward, Vec3::ONE, pdf_pos));
-    random_walk(scene, accel, ray, Vec3::ONE, pdf_dir, sampler, max_vertices, TransportMode::Radiance, path, stats);
+    let start = (ray, Vec3::ONE, pdf_dir);
+    walk(scene, accel, start, sampler, max_vertices, TransportMode::Radiance, roulette, path, stats);
 }
 
 /// Builds a light sub-path of at most `max_vertices` vertices: a light chosen ∝ power, a point
@@ -65,6 +95,32 @@ pub fn light_subpath_with(
     path: &mut Vec<Vertex>,
     stats: &mut RayStats,
 ) {
+    light_walk(scene, accel, dist, sampler, max_vertices, true, path, stats);
+}
+
+/// [`light_subpath`] without Russian roulette (see [`camera_subpath_exact`]).
+pub fn light_subpath_exact(
+    scene: &Scene,
+    accel: &Accel,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
+    light_walk(scene, accel, &scene.lights.distribution, sampler, max_vertices, false, path, stats);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn light_walk(
+    scene: &Scene,
+    accel: &Accel,
+    dist: &Distribution1D,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    roulette: bool,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
     path.clear();
     if max_vertices == 0 {
         return;
@@ -83,18 +139,8 @@ pub fn light_subpath_with(
     let beta = es.le * (cos / (es.pdf_pos * es.pdf_dir));
     let origin =
         if es.n == Vec3::ZERO { es.p } else { es.p + es.n * ray_offset(es.p, &scene.mesh.corners(path[0].tri)) };
-    random_walk(
-        scene,
-        accel,
-        Ray { origin, dir: es.dir },
-        beta,
-        es.pdf_dir,
-        sampler,
-        max_vertices,
-        TransportMode::Importance,
-        path,
-        stats,
-    );
+    let start = (Ray { origin, dir: es.dir }, beta, es.pdf_dir);
+    walk(scene, accel, start, sampler, max_vertices, TransportMode::Importance, roulette, path, stats);
 }
 
 /// Extends `path` (whose last vertex emitted `ray` with solid-angle density `pdf_w`) by
@@ -102,12 +148,28 @@ pub fn light_subpath_with(
 pub fn random_walk(
     scene: &Scene,
     accel: &Accel,
-    mut ray: Ray,
-    mut beta: Vec3,
-    mut pdf_w: f32,
+    ray: Ray,
+    beta: Vec3,
+    pdf_w: f32,
     sampler: &mut impl Sampler,
     max_vertices: usize,
     mode: TransportMode,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
+    walk(scene, accel, (ray, beta, pdf_w), sampler, max_vertices, mode, true, path, stats);
+}
+
+/// [`random_walk`] from (ray, β, pdf_w), with or without Russian roulette.
+#[allow(clippy::too_many_arguments)]
+fn walk(
+    scene: &Scene,
+    accel: &Accel,
+    (mut ray, mut beta, mut pdf_w): (Ray, Vec3, f32),
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    mode: TransportMode,
+    roulette: bool,
     path: &mut Vec<Vertex>,
     stats: &mut RayStats,
 ) {
@@ -162,7 +224,7 @@ pub fn random_walk(
         if beta == Vec3::ZERO || !beta.is_finite() {
             break;
         }
-        if n > RR_START {
+        if roulette && n > RR_START {
             let q = (beta.max_element() / beta_start).min(0.95);
             if sampler.next_1d() >= q {
                 break;
