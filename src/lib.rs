@@ -6,7 +6,7 @@
 //! ```text
 //! scene file ──load──► SceneDesc ──scene──► Scene ──accel──► BVH (single rays, 4/8-wide packets)
 //!        ──path──► path vertices ──vpl──► VPL set ──gather──► image ──filter──► film ──► window / EXR
-//!                                  └──offline──► pt | bdpt | mlt | pssmlt ──────────────► film
+//!                                  └──offline──► pt | bdpt | pssmlt ───────────────────► film
 //! ```
 //!
 //! Modules in flow order: [`load`] (files → [`load::SceneDesc`]), [`scene`] (validated

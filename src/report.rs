@@ -27,6 +27,8 @@ pub enum Method {
     Pt,
     /// Bidirectional path tracing.
     Bdpt,
+    /// Primary-sample-space MLT over the bidirectional sampler (its default settings).
+    Pssmlt,
     /// A VPL sampler with the frame pipeline (ir or mir).
     Vpl {
         /// The sampler.
@@ -48,13 +50,14 @@ impl Method {
             Some(base) => (base, false),
             None => (s, true),
         };
-        if !compensate && matches!(s, "pt" | "bdpt") {
+        if !compensate && matches!(s, "pt" | "bdpt" | "pssmlt") {
             return Err(format!("'{whole}': -uncompensated applies to VPL methods only"));
         }
         let mut config = SamplerConfig::default();
         let sampler = match s {
             "pt" => return Ok(Method::Pt),
             "bdpt" => return Ok(Method::Bdpt),
+            "pssmlt" => return Ok(Method::Pssmlt),
             "sir" => VplSamplerArg::Sir,
             "sir-cdf" => VplSamplerArg::SirCdf,
             "bir" => VplSamplerArg::Bir,
@@ -65,7 +68,7 @@ impl Method {
                     Some("mtmh") => VplSamplerArg::Mtmh,
                     _ => {
                         return Err(format!(
-                            "unknown method '{s}' (pt, bdpt, sir, sir-cdf, bir, mh[-pss][-cdf], mtmh[-pss][-cdf])"
+                            "unknown method '{s}' (pt, bdpt, pssmlt, sir, sir-cdf, bir, mh[-pss][-cdf], mtmh[-pss][-cdf])"
                         ));
                     }
                 };
@@ -88,6 +91,7 @@ impl Method {
         match self {
             Method::Pt => "pt".into(),
             Method::Bdpt => "bdpt".into(),
+            Method::Pssmlt => "pssmlt".into(),
             Method::Vpl { sampler, config, compensate } => {
                 let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
                 if sampler.is_metropolis() {
@@ -140,6 +144,13 @@ pub fn run(
             let opts = BdptOptions { max_depth: offline.max_depth, only: None, path_edges: None };
             let o = offline::render_bdpt(scene, accel, &offline, &opts, &hidden);
             Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
+        }
+        Method::Pssmlt => {
+            let pss = crate::offline::pssmlt::PssmltSettings::default();
+            let (o, st) = crate::offline::pssmlt::render_pssmlt(scene, accel, &offline, &pss, &hidden);
+            let (p, a) = (st.large.0 + st.small.0, st.large.1 + st.small.1);
+            let acceptance = (p > 0).then(|| a as f64 / p as f64);
+            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance }
         }
         Method::Vpl { sampler, config, compensate } => {
             let mut s = sampler.build_with(config);
@@ -421,7 +432,9 @@ mod tests {
 
     #[test]
     fn methods_parse_with_their_suffixes_and_label_back() {
-        for m in ["pt", "bdpt", "sir", "sir-uncompensated", "mtmh-bidir", "mtmh-pss-cdf-uncompensated", "mh-pss"] {
+        for m in
+            ["pt", "bdpt", "pssmlt", "sir", "sir-uncompensated", "mtmh-bidir", "mtmh-pss-cdf-uncompensated", "mh-pss"]
+        {
             let label = Method::parse(m).unwrap().label();
             assert_eq!(Method::parse(&label).unwrap(), Method::parse(m).unwrap(), "{m} → {label}");
         }

@@ -151,6 +151,8 @@ pub struct MltSampler {
     p_large: f32,
     stream: usize,
     index: usize,
+    /// The second normal number of the last Box–Muller pair, not used yet.
+    spare_normal: Option<f32>,
 }
 
 /// Largest f32 below 1.
@@ -169,6 +171,7 @@ impl MltSampler {
             p_large,
             stream: 0,
             index: 0,
+            spare_normal: None,
         }
     }
 
@@ -229,6 +232,7 @@ impl MltSampler {
         if i >= self.x.len() {
             self.x.resize(i + 1, PrimarySample::default());
         }
+        let normal = if self.large_step { 0.0 } else { self.standard_normal() };
         let rng = &mut self.rng;
         let x = &mut self.x[i];
         // Not read since the last accepted large step: that step would have drawn it anew.
@@ -245,7 +249,7 @@ impl MltSampler {
         } else {
             // The small steps it missed, combined: a normal step of σ·√n.
             let n = (self.iteration - x.modified) as f32;
-            let step = standard_normal(rng) * self.sigma * n.sqrt();
+            let step = normal * self.sigma * n.sqrt();
             let v = x.value + step;
             x.value = (v - v.floor()).min(ONE_MINUS_EPSILON);
         }
@@ -263,11 +267,20 @@ impl Sampler for MltSampler {
     }
 }
 
-/// A standard normal number (Box–Muller).
-fn standard_normal(rng: &mut Pcg32) -> f32 {
-    let u1 = 1.0 - rng.next_f64(); // (0, 1]
-    let u2 = rng.next_f64();
-    ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
+impl MltSampler {
+    /// A standard normal number: Box–Muller, both numbers of a pair used (the logarithm, square
+    /// root and sine/cosine were most of a small step's cost).
+    fn standard_normal(&mut self) -> f32 {
+        if let Some(z) = self.spare_normal.take() {
+            return z;
+        }
+        let u1 = 1.0 - self.rng.next_f32(); // (0, 1]
+        let u2 = self.rng.next_f32();
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
+        self.spare_normal = Some(r * sin);
+        r * cos
+    }
 }
 
 /// A state's value: where on the raster it lands and f_d (see the module doc).
