@@ -1,5 +1,6 @@
 //! A 5×7 bitmap font for the HUD (no font crate): digits, upper-case letters and the punctuation
-//! the HUD prints. Lower-case letters are drawn as capitals; anything else as '?'.
+//! the HUD prints, and the few non-ASCII signs it uses (`×`). Lower-case letters are drawn as
+//! capitals; anything else as '?'.
 //!
 //! Each glyph is seven rows of five bits, most significant bit on the left, drawn in a 6×8 cell
 //! (one column and one row of spacing), scaled by an integer factor.
@@ -67,6 +68,9 @@ const GLYPHS: [(char, [u8; 7]); 50] = [
     ('?', g([0b01110, 0b10001, 0b00001, 0b00010, 0b00100, 0, 0b00100])),
 ];
 
+/// Glyphs of the non-ASCII characters the HUD prints ("VPL REUSE ×4").
+const EXTRA: [(char, [u8; 7]); 1] = [('×', g([0, 0b10001, 0b01010, 0b00100, 0b01010, 0b10001, 0]))];
+
 /// The glyph table indexed by ASCII code (built at compile time from [`GLYPHS`]).
 const TABLE: [[u8; 7]; 128] = {
     let unknown = GLYPHS[GLYPHS.len() - 1].1;
@@ -82,7 +86,10 @@ const TABLE: [[u8; 7]; 128] = {
 /// The seven rows of `c`'s glyph.
 pub fn glyph(c: char) -> [u8; 7] {
     let c = c.to_ascii_uppercase();
-    if c.is_ascii() { TABLE[c as usize] } else { TABLE['?' as usize] }
+    if c.is_ascii() {
+        return TABLE[c as usize];
+    }
+    EXTRA.iter().find(|(e, _)| *e == c).map_or(TABLE['?' as usize], |(_, rows)| *rows)
 }
 
 /// Width in pixels of `text` drawn at `scale`.
@@ -128,15 +135,16 @@ mod tests {
 
     #[test]
     fn every_table_entry_is_a_five_bit_glyph_and_lower_case_maps_to_capitals() {
-        for (c, rows) in GLYPHS {
+        for (c, rows) in GLYPHS.iter().chain(&EXTRA).copied() {
             assert!(rows.iter().all(|r| *r < 32), "{c}");
             assert_eq!(glyph(c), rows);
         }
         assert_eq!(glyph('m'), glyph('M'));
         assert_eq!(glyph('é'), glyph('?'));
         // Distinct characters have distinct glyphs (a typo would often duplicate one).
-        for (i, (a, ga)) in GLYPHS.iter().enumerate() {
-            for (b, gb) in &GLYPHS[i + 1..] {
+        let all: Vec<_> = GLYPHS.iter().chain(&EXTRA).collect();
+        for (i, (a, ga)) in all.iter().enumerate() {
+            for (b, gb) in &all[i + 1..] {
                 assert_ne!(ga, gb, "{a} and {b} share a glyph");
             }
         }

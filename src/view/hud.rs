@@ -129,6 +129,53 @@ pub fn draw(buf: &mut [u32], width: u32, height: u32, lines: &[String], scale: u
 mod tests {
     use super::*;
 
+    /// Every character of every HUD line has a glyph of its own (none drawn as '?'), over the
+    /// settings that change the text: chain modes, VPL reuse (its `×`), clamp states, no
+    /// acceptance, status messages of the keys.
+    #[test]
+    fn the_hud_draws_every_character_it_prints() {
+        let question = super::super::font::glyph('?');
+        // The keys' messages (controls.rs) and the window's.
+        let statuses = [
+            "clamp compensation on",
+            "interleave 4x4",
+            "fresh chains every frame",
+            "sampler mh-pss",
+            "1024 VPLs",
+            "camera reset",
+            "saved out/screenshot-0001.png",
+        ];
+        let configs =
+            [(false, 4, 300.0, true, Some(0.5)), (true, 1, 0.0, false, None), (false, 1, 1000.0, false, Some(0.0))];
+        for ((fresh, reuse, clamp, compensate, acceptance), status) in
+            configs.into_iter().flat_map(|c| statuses.into_iter().map(move |s| (c, s)))
+        {
+            let settings = FrameSettings { clamp, compensate, ..FrameSettings::interactive() };
+            let d = HudData {
+                fps: 9.5,
+                times: StageTimes::default(),
+                sampler: "mtmh-pss",
+                settings,
+                fresh_chains: fresh,
+                reuse_frames: reuse,
+                vpls: 256,
+                vpls_reused: 3,
+                rays_per_second: 1e7,
+                acceptance,
+                accumulated: 12,
+                gbuffer_held: fresh,
+                vpls_ahead: !fresh,
+                render_size: (640, 480),
+                status: Some(status),
+            };
+            for line in lines(&d) {
+                for c in line.chars().filter(|&c| c != '?') {
+                    assert_ne!(super::super::font::glyph(c), question, "{c:?} in {line:?} has no glyph");
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_hud_shows_every_required_quantity_and_draws_inside_the_buffer() {
         let d = HudData {
