@@ -380,10 +380,7 @@ pub fn render_progressive(
     let mut film = Film::new(cam.width, cam.height, FilterKind::Box, aovs);
     let start = Instant::now();
     let mut total = FrameStats::default();
-    match budget {
-        Budget::Samples(n) => progress.set_length(n as u64),
-        Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
-    }
+    budget.start_progress(progress);
     let mut frames = 0u32;
     let mut spare = Spare::default();
     loop {
@@ -407,17 +404,7 @@ pub fn render_progressive(
         spare = frame.into_spare();
         total.rays.samples += (cam.width * cam.height) as u64;
         frames += 1;
-        let done = match budget {
-            Budget::Samples(n) => {
-                progress.set_position(frames as u64);
-                frames >= n
-            }
-            Budget::Time(t) => {
-                progress.set_position(start.elapsed().as_millis().min(t.as_millis()) as u64);
-                start.elapsed() >= t
-            }
-        };
-        if done {
+        if budget.spent(frames, start, progress) {
             break;
         }
     }

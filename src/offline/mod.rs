@@ -31,6 +31,31 @@ pub enum Budget {
     Time(Duration),
 }
 
+impl Budget {
+    /// Sets `progress`'s length: passes, or milliseconds.
+    pub fn start_progress(&self, progress: &ProgressBar) {
+        match *self {
+            Budget::Samples(n) => progress.set_length(n as u64),
+            Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
+        }
+    }
+
+    /// After `passes` passes of a run that began at `start`: moves `progress` on and tells
+    /// whether the budget is spent.
+    pub fn spent(&self, passes: u32, start: Instant, progress: &ProgressBar) -> bool {
+        match *self {
+            Budget::Samples(n) => {
+                progress.set_position(passes as u64);
+                passes >= n
+            }
+            Budget::Time(t) => {
+                progress.set_position(start.elapsed().min(t).as_millis() as u64);
+                start.elapsed() >= t
+            }
+        }
+    }
+}
+
 /// Settings shared by the offline modes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OfflineSettings {
@@ -97,10 +122,7 @@ where
         Budget::Samples(n) => n.clamp(1, 4),
         Budget::Time(_) => 1,
     };
-    match settings.budget {
-        Budget::Samples(n) => progress.set_length(n as u64),
-        Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
-    }
+    settings.budget.start_progress(progress);
     let mut spp = 0u32;
     loop {
         let count = match settings.budget {
@@ -145,16 +167,7 @@ where
             }
         }
         spp += count;
-        let done = match settings.budget {
-            Budget::Samples(n) => {
-                progress.set_position(spp as u64);
-                spp >= n
-            }
-            Budget::Time(t) => {
-                progress.set_position(start.elapsed().as_millis().min(t.as_millis()) as u64);
-                start.elapsed() >= t
-            }
-        };
+        let done = settings.budget.spent(spp, start, progress);
         if done {
             break;
         }

@@ -518,14 +518,9 @@ pub fn render_pssmlt(
     drop(boot);
     let b = chain_stats.b;
     let pixels = cam.width as u64 * cam.height as u64;
-    let (per_pass_spp, target_spp) = match settings.budget {
-        Budget::Samples(n) => (1, n),
-        Budget::Time(_) => (1, u32::MAX),
-    };
-    match settings.budget {
-        Budget::Samples(n) => progress.set_length(n as u64),
-        Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
-    }
+    // One mutation per pixel per pass.
+    let per_pass_spp = 1;
+    settings.budget.start_progress(progress);
     if !(b > 0.0) {
         // Nothing in the bootstrap reached the camera: the image is black (as pt's would be
         // at that sample count).
@@ -616,17 +611,7 @@ pub fn render_pssmlt(
             film.add_splat_pass();
         }
         spp += per_pass_spp;
-        let done = match settings.budget {
-            Budget::Samples(_) => {
-                progress.set_position(spp as u64);
-                spp >= target_spp
-            }
-            Budget::Time(t) => {
-                progress.set_position(start.elapsed().min(t).as_millis() as u64);
-                start.elapsed() >= t
-            }
-        };
-        if done {
+        if settings.budget.spent(spp, start, progress) {
             break;
         }
     }
