@@ -214,8 +214,9 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     if let Some(m) = pssmlt {
         let (large, small) = m.rejected();
         println!(
-            "  {} chains, b = {:.4e} from {} bootstrap paths ({} non-zero); rejected: large steps {:.1} %, small steps {:.1} %",
+            "  {} chains ({} accepted nothing), b = {:.4e} from {} bootstrap paths ({} non-zero); rejected: large steps {:.1} %, small steps {:.1} %",
             options.pssmlt.chains,
+            m.stuck_chains,
             m.b,
             options.pssmlt.bootstrap,
             m.bootstrap_nonzero,

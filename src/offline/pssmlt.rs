@@ -110,6 +110,9 @@ pub struct PssmltStats {
     pub large: (u64, u64),
     /// Small steps proposed and accepted.
     pub small: (u64, u64),
+    /// Chains that accepted none of their proposals (at least 32 of them): stuck on a state far
+    /// brighter than its neighbours, the bright dots MLT renderers are known for.
+    pub stuck_chains: u64,
 }
 
 impl PssmltStats {
@@ -441,6 +444,9 @@ struct Chain {
     current: Sample,
     current_i: f64,
     paths: Paths,
+    /// Proposals made and accepted over the run.
+    proposed: u64,
+    accepted: u64,
 }
 
 /// The bootstrap state `i`'s sampler, its first numbers stratified ([`stratified`]).
@@ -549,7 +555,7 @@ pub fn render_pssmlt(
             debug_assert!(current_i > 0.0, "a bootstrap state chosen ∝ its target has one");
             sampler.reseed(Pcg32::from_words(&[seed, TAG_CHAIN, c, 0]));
             let accept_rng = Pcg32::from_words(&[seed, TAG_CHAIN, c, 1]);
-            Chain { sampler, accept_rng, depth, current, current_i, paths }
+            Chain { sampler, accept_rng, depth, current, current_i, paths, proposed: 0, accepted: 0 }
         })
         .collect();
     drop((cdf, strata));
@@ -588,8 +594,10 @@ pub fn render_pssmlt(
                     let accepted = (ch.accept_rng.next_f64()) < a;
                     let count = if large { &mut cs.large } else { &mut cs.small };
                     count.0 += 1;
+                    ch.proposed += 1;
                     if accepted {
                         count.1 += 1;
+                        ch.accepted += 1;
                         ch.current = proposal;
                         ch.current_i = pi;
                         ch.sampler.accept();
@@ -616,6 +624,7 @@ pub fn render_pssmlt(
         }
     }
     progress.finish_and_clear();
+    chain_stats.stuck_chains = chains.iter().filter(|c| c.proposed >= 32 && c.accepted == 0).count() as u64;
     (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats)
 }
 
