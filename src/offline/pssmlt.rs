@@ -454,7 +454,7 @@ fn bootstrap_sampler(seed: u64, i: u64, pss: &PssmltSettings, strata: &Strata) -
     let mut s = MltSampler::new(Pcg32::from_words(&[seed, TAG_BOOTSTRAP, i]), pss.sigma, pss.large_step);
     let d = strata.depth_of[i as usize] as usize;
     let k = i as usize - strata.first[d];
-    for (j, values) in strata.lhs[d].iter().enumerate() {
+    for (j, values) in strata.numbers[d].iter().enumerate() {
         s.preset_camera(j, values[k]);
     }
     s
@@ -467,7 +467,7 @@ struct Strata {
     /// Index of the first state of each depth.
     first: Vec<usize>,
     /// Per depth, per camera number, per state of that depth.
-    lhs: Vec<Vec<Vec<f32>>>,
+    numbers: Vec<Vec<Vec<f32>>>,
 }
 
 /// Renders `scene` with PSSMLT; also returns the chains' statistics.
@@ -493,9 +493,9 @@ pub fn render_pssmlt(
             counts.iter().enumerate().flat_map(|(d, &k)| std::iter::repeat_n(d as u32, k)).collect();
         let first = counts.iter().scan(0, |acc, &k| Some(std::mem::replace(acc, *acc + k))).collect();
         // Strategy and raster position (depth 0 has only the raster position).
-        let lhs =
+        let numbers =
             (0..depths).into_par_iter().map(|d| stratified(seed, d, counts[d], if d == 0 { 2 } else { 3 })).collect();
-        Strata { depth_of, first, lhs }
+        Strata { depth_of, first, numbers }
     };
     let depth_of = &strata.depth_of;
     let boot: Vec<(f64, RayStats)> = (0..n_boot as u64)
