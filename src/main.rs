@@ -42,7 +42,8 @@ enum Command {
     /// VPL-sampler report (papers/002 §7.3–7.5): generation time, rejection rate and
     /// single-frame relMSE of every strategy, same gather and clamp for all.
     Samplers(ReportArgs),
-    /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), mean bias; B is the reference.
+    /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), normalised relMSE (the
+    /// same with both divided by B's mean luminance), mean bias; B is the reference.
     Diff {
         /// Test image.
         a: PathBuf,
@@ -88,6 +89,11 @@ struct ReportArgs {
     /// interleave; overrides --width and --height).
     #[arg(long, value_enum, default_value_t = Workload::Default)]
     workload: Workload,
+    /// The error the converge table gives: `relmse` ((x − r)² / (r² + 0.01), which on dark
+    /// scenes is close to an absolute error) or `normalised` (the same with both images scaled to
+    /// mean luminance 1: it does not change with exposure).
+    #[arg(long, value_enum, default_value_t = mirage::report::Metric::Relmse)]
+    metric: mirage::report::Metric,
     /// Write the markdown here (and SVG plots beside it); default: print only.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -353,7 +359,13 @@ fn cmd_diff(a: &Path, b: &Path) -> Result<()> {
         bail!("{} is {}×{} but {} is {}×{}", a.display(), ia.width, ia.height, b.display(), ib.width, ib.height);
     }
     let e = ia.errors(&ib);
-    println!("mse {:.6e}  relmse {:.6e}  mean_bias {:+.4} %", e.mse, e.rel_mse, 100.0 * e.mean_bias);
+    println!(
+        "mse {:.6e}  relmse {:.6e}  normalised relmse {:.6e}  mean_bias {:+.4} %",
+        e.mse,
+        e.rel_mse,
+        e.rel_mse_normalised,
+        100.0 * e.mean_bias
+    );
     Ok(())
 }
 
@@ -429,20 +441,27 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
                 args.seeds,
                 &reference,
                 &frame_settings,
+                args.metric,
                 &|m| eprintln!("{m}"),
             );
-            svgs.push((source.name(), report::converge_svg(&rows, &source.name())));
+            svgs.push((source.name(), report::converge_svg(&rows, &source.name(), args.metric)));
             conv_rows.extend(rows);
         }
     }
     if samplers {
         md += &report::sampler_markdown(&sampler_rows);
     } else {
-        md += if args.seeds > 1 {
-            "Median relMSE against the reference after each time budget over the runs, [lowest–highest] (passes of the median run in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+        let name = args.metric.name();
+        md += &if args.seeds > 1 {
+            format!(
+                "Median {name} against the reference after each time budget over the runs, [lowest–highest] (passes of the median run in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+            )
         } else {
-            "relMSE against the reference after each time budget (passes in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+            format!(
+                "{name} against the reference after each time budget (passes in parentheses: spp for pt/bdpt, frames for VPL methods).\n\n"
+            )
         };
+        md += &format!("{}.\n\n", args.metric.definition());
         md += &report::converge_markdown(&conv_rows, &args.times);
     }
     println!("{md}");

@@ -263,13 +263,41 @@ pub enum FilterArg {
     Lanczos,
 }
 
-/// Tone-mapping operators for the PNG.
+/// Tone-mapping operators for the PNG and the window.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TonemapArg {
-    /// Reinhard et al. 2002, global photographic operator (default).
+    /// Exposure from the image (its median lit luminance to mid grey) plus --exposure stops,
+    /// then the ACES fitted filmic curve on each pixel's largest channel: hue kept, highlights
+    /// rolled off (default).
+    Filmic,
+    /// Reinhard et al. 2002, global photographic operator (key 0.18; it takes no --exposure).
     Reinhard,
     /// Linear: multiply by 2^--exposure, clamp, sRGB.
     Exposure,
+}
+
+impl TonemapArg {
+    /// The operator with `--exposure` (stops, default 0), or an error when the combination
+    /// means nothing (Reinhard sets its own key).
+    pub fn with_exposure(self, exposure: Option<f32>) -> Result<Tonemap, String> {
+        if let Some(e) = exposure
+            && !e.is_finite()
+        {
+            return Err(format!("--exposure {e} must be a finite number of stops"));
+        }
+        let stops = exposure.unwrap_or(0.0);
+        Ok(match self {
+            TonemapArg::Filmic => Tonemap::Filmic(stops),
+            TonemapArg::Exposure => Tonemap::Exposure(stops),
+            TonemapArg::Reinhard if exposure.is_some() => {
+                return Err(
+                    "--exposure has no effect with --tonemap reinhard (it sets its own key); use filmic or exposure"
+                        .into(),
+                );
+            }
+            TonemapArg::Reinhard => Tonemap::Reinhard,
+        })
+    }
 }
 
 /// The camera flags shared by `render` and `view`.
@@ -382,10 +410,11 @@ pub struct RenderArgs {
     /// Also write albedo, normal and depth layers into the EXR.
     #[arg(long)]
     pub aov: bool,
-    /// Tone mapping for the PNG.
-    #[arg(long, value_enum, default_value_t = TonemapArg::Reinhard)]
+    /// Tone mapping for the PNG (the EXR is the linear measurement).
+    #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
     pub tonemap: TonemapArg,
-    /// Exposure in stops for `--tonemap exposure` (implies it when given).
+    /// Exposure in stops: added to the filmic operator's automatic exposure, or the linear
+    /// scale 2^stops of `--tonemap exposure`.
     #[arg(long, allow_hyphen_values = true)]
     pub exposure: Option<f32>,
     /// Output EXR path; a PNG is written beside it. Default: out/<scene>-<mode>.exr.
@@ -517,11 +546,7 @@ impl RenderArgs {
             FilterArg::Mitchell => FilterKind::Mitchell,
             FilterArg::Lanczos => FilterKind::Lanczos,
         };
-        let tonemap = match (self.tonemap, self.exposure) {
-            (_, Some(e)) => Tonemap::Exposure(e),
-            (TonemapArg::Exposure, None) => Tonemap::Exposure(0.0),
-            (TonemapArg::Reinhard, None) => Tonemap::Reinhard,
-        };
+        let tonemap = self.tonemap.with_exposure(self.exposure).map_err(OptionsError)?;
         Ok(RenderOptions {
             mode: self.mode,
             offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },

@@ -183,6 +183,46 @@ pub fn reference_dir() -> PathBuf {
     PathBuf::from("target").join("reference")
 }
 
+/// The error a convergence report measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Metric {
+    /// Mean of (x − r)² / (r² + 0.01) over pixels and channels: the constant keeps black pixels
+    /// finite, and dominates where the image is darker than 0.1.
+    Relmse,
+    /// The same after both images are divided by the reference's mean luminance m, i.e.
+    /// (x − r)² / (r² + 0.01·m²): independent of exposure, so dark scenes are compared by their
+    /// relative error too.
+    Normalised,
+}
+
+impl Metric {
+    /// This metric's value of `e`.
+    pub fn of(self, e: &crate::film::ImageErrors) -> f64 {
+        match self {
+            Metric::Relmse => e.rel_mse,
+            Metric::Normalised => e.rel_mse_normalised,
+        }
+    }
+
+    /// Its name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Relmse => "relMSE",
+            Metric::Normalised => "normalised relMSE",
+        }
+    }
+
+    /// Its definition, for a report's header.
+    pub fn definition(self) -> &'static str {
+        match self {
+            Metric::Relmse => "relMSE = mean over pixels and channels of (x − r)² / (r² + 0.01)",
+            Metric::Normalised => {
+                "normalised relMSE = mean over pixels and channels of (x − r)² / (r² + 0.01·m²), m the reference's mean luminance (relMSE of both images at mean 1: it does not depend on exposure)"
+            }
+        }
+    }
+}
+
 /// One row of a convergence report.
 #[derive(Clone, Debug)]
 pub struct ConvergeRow {
@@ -196,14 +236,14 @@ pub struct ConvergeRow {
     pub elapsed: f64,
     /// Samples per pixel or frames.
     pub passes: u32,
-    /// relMSE against the reference (the median over the runs).
-    pub rel_mse: f64,
-    /// Lowest and highest relMSE over the runs, when there was more than one.
+    /// The error against the reference in the report's metric (the median over the runs).
+    pub error: f64,
+    /// Lowest and highest error over the runs, when there was more than one.
     pub range: Option<(f64, f64)>,
 }
 
-/// relMSE of every method at every time budget, from `seeds` independent runs each (seeds
-/// 1..=`seeds`): the median, and the range when there is more than one run.
+/// The error (in `metric`) of every method at every time budget, from `seeds` independent runs
+/// each (seeds 1..=`seeds`): the median, and the range when there is more than one run.
 #[allow(clippy::too_many_arguments)]
 pub fn converge(
     scene: &Scene,
@@ -214,6 +254,7 @@ pub fn converge(
     seeds: u32,
     reference: &Image,
     frame_settings: &FrameSettings,
+    metric: Metric,
     progress: &dyn Fn(&str),
 ) -> Vec<ConvergeRow> {
     let mut rows = Vec::new();
@@ -223,11 +264,11 @@ pub fn converge(
             let mut runs: Vec<(f64, f64, u32)> = (1..=seeds.max(1) as u64)
                 .map(|seed| {
                     let r = run(scene, accel, m, Budget::Time(Duration::from_secs_f64(t)), seed, frame_settings);
-                    (r.image.errors(reference).rel_mse, r.elapsed.as_secs_f64(), r.passes)
+                    (metric.of(&r.image.errors(reference)), r.elapsed.as_secs_f64(), r.passes)
                 })
                 .collect();
             runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let (rel_mse, elapsed, passes) = runs[runs.len() / 2];
+            let (error, elapsed, passes) = runs[runs.len() / 2];
             let range = (runs.len() > 1).then(|| (runs[0].0, runs[runs.len() - 1].0));
             rows.push(ConvergeRow {
                 scene: name.to_string(),
@@ -235,7 +276,7 @@ pub fn converge(
                 budget: t,
                 elapsed,
                 passes,
-                rel_mse,
+                error,
                 range,
             });
         }
@@ -269,10 +310,10 @@ pub fn converge_markdown(rows: &[ConvergeRow], times: &[f64]) -> String {
             match rows.iter().find(|r| r.scene == scene && r.method == method && r.budget == *t) {
                 Some(r) => match r.range {
                     Some((lo, hi)) => {
-                        let _ = write!(s, " {:.4} [{lo:.4}–{hi:.4}] ({}) |", r.rel_mse, r.passes);
+                        let _ = write!(s, " {:.4} [{lo:.4}–{hi:.4}] ({}) |", r.error, r.passes);
                     }
                     None => {
-                        let _ = write!(s, " {:.4} ({}) |", r.rel_mse, r.passes);
+                        let _ = write!(s, " {:.4} ({}) |", r.error, r.passes);
                     }
                 },
                 None => s.push_str(" – |"),
@@ -283,22 +324,24 @@ pub fn converge_markdown(rows: &[ConvergeRow], times: &[f64]) -> String {
     s
 }
 
-/// An SVG plot of relMSE against time (log–log), one line per method, for one scene.
-pub fn converge_svg(rows: &[ConvergeRow], scene: &str) -> String {
-    let rows: Vec<&ConvergeRow> = rows.iter().filter(|r| r.scene == scene && r.rel_mse > 0.0).collect();
+/// An SVG plot of the error (in `metric`) against time (log–log), one line per method, for one
+/// scene.
+pub fn converge_svg(rows: &[ConvergeRow], scene: &str, metric: Metric) -> String {
+    let rows: Vec<&ConvergeRow> = rows.iter().filter(|r| r.scene == scene && r.error > 0.0).collect();
     let (w, h, pad) = (640.0, 400.0, 60.0);
     let lx = |t: f64| t.max(1e-3).log10();
     let (tmin, tmax) = rows.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(lx(r.elapsed)), b.max(lx(r.elapsed))));
     let (emin, emax) =
-        rows.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.rel_mse.log10()), b.max(r.rel_mse.log10())));
+        rows.iter().fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(r.error.log10()), b.max(r.error.log10())));
     let (tmin, tmax) = (tmin.floor(), tmax.ceil().max(tmin.floor() + 1.0));
     let (emin, emax) = (emin.floor(), emax.ceil().max(emin.floor() + 1.0));
     let px = |t: f64| pad + (lx(t) - tmin) / (tmax - tmin) * (w - 2.0 * pad);
     let py = |e: f64| h - pad - (e.log10() - emin) / (emax - emin) * (h - 2.0 * pad);
     let colors = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#17becf"];
     let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"20\" text-anchor=\"middle\">{scene}: relMSE vs render time (log–log)</text>\n",
-        w / 2.0
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<text x=\"{}\" y=\"20\" text-anchor=\"middle\">{scene}: {} vs render time (log–log)</text>\n",
+        w / 2.0,
+        metric.name()
     );
     let _ =
         writeln!(s, "<line x1=\"{pad}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>", h - pad, w - pad, h - pad);
@@ -323,7 +366,7 @@ pub fn converge_svg(rows: &[ConvergeRow], scene: &str) -> String {
         let pts: Vec<String> = rows
             .iter()
             .filter(|r| r.method == *m)
-            .map(|r| format!("{:.1},{:.1}", px(r.elapsed), py(r.rel_mse)))
+            .map(|r| format!("{:.1},{:.1}", px(r.elapsed), py(r.error)))
             .collect();
         let _ = writeln!(s, "<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"2\" points=\"{}\"/>", pts.join(" "));
         let _ =
@@ -415,13 +458,13 @@ mod tests {
     /// one run: the value alone.
     #[test]
     fn converge_table_gives_the_median_and_the_range_of_several_runs() {
-        let row = |method: &str, budget: f64, rel_mse: f64, range| ConvergeRow {
+        let row = |method: &str, budget: f64, error: f64, range| ConvergeRow {
             scene: "s".into(),
             method: method.into(),
             budget,
             elapsed: budget,
             passes: 7,
-            rel_mse,
+            error,
             range,
         };
         let rows = vec![row("mtmh", 1.0, 0.02, Some((0.01, 0.5))), row("sir", 1.0, 0.03, None)];

@@ -182,6 +182,10 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         (vec!["render", "--mode", "pssmlt", "--sigma", "NaN"], "--sigma"),
         (vec!["render", "--fov-y", "200"], "field of view"),
         (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
+        (vec!["render", "--tonemap", "reinhard", "--exposure", "1"], "--exposure"),
+        (vec!["render", "--exposure", "inf"], "--exposure"),
+        (vec!["view", "--headless", "--tonemap", "reinhard", "--exposure", "-1"], "--exposure"),
+        (vec!["view", "--headless", "--exposure", "NaN"], "--exposure"),
     ] {
         let o = mirage(&args);
         assert!(!o.status.success(), "{args:?} should fail");

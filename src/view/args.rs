@@ -8,8 +8,9 @@ use clap::{Args, ValueEnum};
 
 use super::error::ViewError;
 use super::path::CameraPath;
-use super::present::ToneCurve;
 use super::session::{Ahead, SessionSettings};
+use crate::film::Tonemap;
+use crate::options::TonemapArg;
 use crate::options::{CameraArgs, GatherArgs, VplSamplerArg};
 
 /// The samplers `mirage view` starts with by preference: the first one built into this binary
@@ -40,7 +41,8 @@ pub const CONTROLS_HELP: &str = "Window controls:
   I               interleave tile 1, 2, 4, 8, 16                 C            clamp on/off (. , ×10 ÷10)
   F               discontinuity filter on/off                    K            chain + VPL reuse / fresh chains
   B               clamp compensation on/off (cost: COMP in HUD)  P, F12       screenshot (EXR + PNG)
-  H / F1          HUD / key help                                 Esc          quit";
+  [ / ]           exposure −1 / +1 stop (shown in the HUD)        H / F1       HUD / key help
+  Esc             quit";
 
 /// Flags of `mirage view`.
 #[derive(Args, Clone, Debug)]
@@ -72,7 +74,12 @@ pub struct ViewArgs {
     /// Render resolution relative to the window (0.5: half the pixels per side, upscaled).
     #[arg(long, default_value_t = 1.0)]
     pub scale: f32,
-    /// Linear tone mapping with this exposure in stops (default: Reinhard's operator).
+    /// Tone mapping of the window and of --record frames (the same operators as `render`'s PNG;
+    /// the filmic exposure adapts smoothly between frames).
+    #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
+    pub tonemap: TonemapArg,
+    /// Exposure in stops: added to the filmic operator's automatic exposure, or the linear
+    /// scale 2^stops of `--tonemap exposure`; [ and ] change it by a stop in the window.
     #[arg(long, allow_hyphen_values = true)]
     pub exposure: Option<f32>,
     /// Run the frame loop without a window (benchmarks, tests, measures); ends with a summary.
@@ -141,8 +148,8 @@ pub struct ViewOptions {
     pub session: SessionSettings,
     /// Render resolution / window resolution.
     pub scale: f32,
-    /// Display tone curve.
-    pub curve: ToneCurve,
+    /// Display tone mapping.
+    pub tonemap: Tonemap,
     /// No window.
     pub headless: bool,
     /// Frames to render (headless: always set).
@@ -178,11 +185,10 @@ impl ViewArgs {
         if !(self.scale >= 0.05 && self.scale <= 4.0) {
             return bad(format!("--scale {} is outside 0.05…4", self.scale));
         }
-        if let Some(e) = self.exposure
-            && !e.is_finite()
-        {
-            return bad("--exposure must be finite".into());
-        }
+        let tonemap = match self.tonemap.with_exposure(self.exposure) {
+            Ok(t) => t,
+            Err(e) => return bad(e),
+        };
         if !(1..=64).contains(&self.vpl_reuse) {
             return bad(format!("--vpl-reuse {} is outside 1…64", self.vpl_reuse));
         }
@@ -222,7 +228,7 @@ impl ViewArgs {
                 ahead: self.vpls_ahead,
             },
             scale: self.scale,
-            curve: self.exposure.map_or(ToneCurve::Reinhard, ToneCurve::Exposure),
+            tonemap,
             headless: self.headless,
             frames: if self.headless { Some(self.frames.unwrap_or(DEFAULT_HEADLESS_FRAMES)) } else { self.frames },
             camera_path,

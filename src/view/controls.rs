@@ -17,6 +17,7 @@
 //! | F | discontinuity filter on / off |
 //! | K | chain reuse / fresh chains every frame |
 //! | P or F12 | screenshot (EXR + PNG) |
+//! | [ / ] | exposure −1 / +1 stop (filmic and linear tone mapping; the HUD shows it) |
 //! | H | HUD on / off; F1 key help |
 //! | Esc | quit |
 
@@ -59,6 +60,10 @@ pub enum Action {
     ToggleChains,
     /// Screenshot.
     Screenshot,
+    /// Exposure one stop down.
+    ExposureDown,
+    /// Exposure one stop up.
+    ExposureUp,
     /// HUD on / off.
     ToggleHud,
     /// Key help on / off.
@@ -88,6 +93,8 @@ pub fn action_for(key: KeyCode) -> Option<Action> {
         KeyF => Action::ToggleFilter,
         KeyK => Action::ToggleChains,
         KeyP | F12 => Action::Screenshot,
+        BracketLeft => Action::ExposureDown,
+        BracketRight => Action::ExposureUp,
         KeyH => Action::ToggleHud,
         F1 => Action::ToggleHelp,
         KeyR => Action::Reset,
@@ -97,7 +104,7 @@ pub fn action_for(key: KeyCode) -> Option<Action> {
 }
 
 /// One line per key, for the help overlay.
-pub const HELP: [&str; 13] = [
+pub const HELP: [&str; 14] = [
     "WASD/QE MOVE   DRAG LOOK   WHEEL SPEED",
     "R RESET CAMERA",
     "1-9 / TAB  VPL SAMPLER",
@@ -108,6 +115,7 @@ pub const HELP: [&str; 13] = [
     "F  FILTER ON/OFF",
     "K  CHAIN REUSE / FRESH",
     "P  SCREENSHOT (EXR + PNG)",
+    "[ / ]  EXPOSURE -1 / +1 STOP",
     "H  HUD   F1 HELP",
     "ESC  QUIT",
     "",

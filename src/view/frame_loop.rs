@@ -13,9 +13,10 @@ use std::time::{Duration, Instant};
 
 use super::error::ViewError;
 use super::measure::{FlickerMeter, is_checkpoint};
-use super::present::{self, ToneCurve};
+use super::present::{self, Mapping};
 use super::session::{FrameOutcome, Motion, Session};
 use crate::film::Image;
+use crate::film::Tonemap;
 use crate::output::{self, Aovs};
 
 /// Seconds per stage (one frame, a sum, or a smoothed value).
@@ -156,12 +157,27 @@ pub struct FrameReport {
     pub vpls_ahead: bool,
 }
 
+/// The share of the way the window's filmic exposure moves per frame towards the current
+/// image's (a time constant of about three frames).
+pub const EXPOSURE_ADAPT: f32 = 0.3;
+
+/// The tone mapping as the HUD shows it: "FILMIC +1 EV", "REINHARD", "LINEAR -2 EV".
+pub fn tonemap_label(t: Tonemap) -> String {
+    match t {
+        Tonemap::Filmic(s) => format!("FILMIC {s:+} EV"),
+        Tonemap::Reinhard => "REINHARD".into(),
+        Tonemap::Exposure(s) => format!("LINEAR {s:+} EV"),
+    }
+}
+
 /// The shared loop body and its state.
 pub struct FrameLoop {
     /// Scene, sampler and running mean.
     pub session: Session,
-    /// Display tone curve.
-    pub curve: ToneCurve,
+    /// Display tone mapping ([ and ] change its stops).
+    pub tonemap: Tonemap,
+    /// The filmic operator's automatic exposure (log2), smoothed over frames.
+    auto_ev: Option<f32>,
     /// The tone-mapped running mean at render resolution (0x00RRGGBB).
     pub displayed: Vec<u32>,
     /// Flicker measure, when requested.
@@ -178,11 +194,12 @@ pub struct FrameLoop {
 
 impl FrameLoop {
     /// A loop over `session`.
-    pub fn new(session: Session, curve: ToneCurve) -> Self {
+    pub fn new(session: Session, tonemap: Tonemap) -> Self {
         let n = session.camera().pixel_count();
         FrameLoop {
             session,
-            curve,
+            tonemap,
+            auto_ev: None,
             displayed: vec![0; n],
             flicker: None,
             reference: None,
@@ -233,7 +250,8 @@ impl FrameLoop {
         if self.displayed.len() != n {
             self.displayed = vec![0; n];
         }
-        present::tonemap(self.session.mean(), self.curve, &mut self.displayed);
+        let mapping = self.mapping();
+        present::tonemap(self.session.mean(), mapping, &mut self.displayed);
         let display = td.elapsed() + outcome.accumulate_time;
         let times = StageTimes::of(&outcome, display, t0.elapsed());
 
@@ -284,6 +302,32 @@ impl FrameLoop {
             gbuffer_held: s.gbuffer_reused > 0,
             vpls_ahead: outcome.vpls_ahead,
         })
+    }
+
+    /// This frame's display mapping. The filmic exposure moves a fraction [`EXPOSURE_ADAPT`] of
+    /// the way (in stops) from the last frame's towards the running mean's automatic exposure,
+    /// so a camera jump (a fresh mean) changes the brightness over a few frames instead of at
+    /// once, and noise in early frames does not make it pump; the first frame takes it as is
+    /// (one still frame is `render`'s PNG).
+    fn mapping(&mut self) -> Mapping {
+        let Tonemap::Filmic(stops) = self.tonemap else { return Mapping::of_still(self.tonemap, &[]) };
+        let target = present::auto_exposure(self.session.mean()).log2();
+        let ev = match self.auto_ev {
+            Some(ev) => ev + EXPOSURE_ADAPT * (target - ev),
+            None => target,
+        };
+        self.auto_ev = Some(ev);
+        Mapping::Filmic { scale: (ev + stops).exp2() }
+    }
+
+    /// Changes the exposure by `stops` (the [ and ] keys); returns the HUD's message.
+    pub fn adjust_exposure(&mut self, stops: f32) -> String {
+        self.tonemap = match self.tonemap {
+            Tonemap::Filmic(s) => Tonemap::Filmic((s + stops).clamp(-20.0, 20.0)),
+            Tonemap::Exposure(s) => Tonemap::Exposure((s + stops).clamp(-20.0, 20.0)),
+            Tonemap::Reinhard => return "reinhard sets its own exposure (--tonemap filmic or exposure)".into(),
+        };
+        format!("exposure {}", tonemap_label(self.tonemap).to_lowercase())
     }
 
     /// Writes a screenshot of the running mean: `png` as displayed and an EXR beside it.

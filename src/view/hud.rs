@@ -44,6 +44,8 @@ pub struct HudData<'a> {
     pub vpls_ahead: bool,
     /// Render resolution.
     pub render_size: (u32, u32),
+    /// Display tone mapping.
+    pub tonemap: crate::film::Tonemap,
     /// A transient message (last key's effect, screenshot path).
     pub status: Option<&'a str>,
 }
@@ -87,12 +89,13 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
             if d.settings.filter.is_some() { "ON" } else { "OFF" }
         ),
         format!(
-            "{:.2} MRAYS/S  ACCEPT {}  {}  FRAMES {}{}",
+            "{:.2} MRAYS/S  ACCEPT {}  {}  FRAMES {}{}  {}",
             d.rays_per_second / 1e6,
             d.acceptance.map_or("-".to_string(), |a| format!("{:.1}%", 100.0 * a)),
             chains_label(d.fresh_chains, d.reuse_frames).to_uppercase(),
             d.accumulated,
-            if d.gbuffer_held { "  G-BUFFER HELD" } else { "" }
+            if d.gbuffer_held { "  G-BUFFER HELD" } else { "" },
+            super::frame_loop::tonemap_label(d.tonemap)
         ),
     ];
     if let Some(s) = d.status {
@@ -128,6 +131,7 @@ pub fn draw(buf: &mut [u32], width: u32, height: u32, lines: &[String], scale: u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::Tonemap;
 
     /// Every character of every HUD line has a glyph of its own (none drawn as '?'), over the
     /// settings that change the text: chain modes, VPL reuse (its `×`), clamp states, no
@@ -144,10 +148,15 @@ mod tests {
             "1024 VPLs",
             "camera reset",
             "saved out/screenshot-0001.png",
+            "exposure filmic -2 ev",
+            "reinhard sets its own exposure (--tonemap filmic or exposure)",
         ];
-        let configs =
-            [(false, 4, 300.0, true, Some(0.5)), (true, 1, 0.0, false, None), (false, 1, 1000.0, false, Some(0.0))];
-        for ((fresh, reuse, clamp, compensate, acceptance), status) in
+        let configs = [
+            (false, 4, 300.0, true, Some(0.5), Tonemap::Filmic(-1.0)),
+            (true, 1, 0.0, false, None, Tonemap::Reinhard),
+            (false, 1, 1000.0, false, Some(0.0), Tonemap::Exposure(2.5)),
+        ];
+        for ((fresh, reuse, clamp, compensate, acceptance, tonemap), status) in
             configs.into_iter().flat_map(|c| statuses.into_iter().map(move |s| (c, s)))
         {
             let settings = FrameSettings { clamp, compensate, ..FrameSettings::interactive() };
@@ -166,6 +175,7 @@ mod tests {
                 gbuffer_held: fresh,
                 vpls_ahead: !fresh,
                 render_size: (640, 480),
+                tonemap,
                 status: Some(status),
             };
             for line in lines(&d) {
@@ -201,6 +211,7 @@ mod tests {
             gbuffer_held: true,
             vpls_ahead: true,
             render_size: (512, 512),
+            tonemap: Tonemap::Filmic(1.0),
             status: Some("clamp off"),
         };
         let l = lines(&d).join("\n");
@@ -216,6 +227,7 @@ mod tests {
             "42.0%",
             "MTMH",
             "G-BUFFER HELD",
+            "FILMIC +1 EV",
         ] {
             assert!(l.contains(s), "missing {s} in\n{l}");
         }

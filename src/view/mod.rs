@@ -91,7 +91,7 @@ fn run_view(args: &ViewArgs) -> Result<(), ViewError> {
     let (rw, rh) = render_size(window_size, opts.scale);
     let fly = FlyCamera::from_camera(&scene.camera, args.camera.up.unwrap_or(Vec3::Y), scene.bounds.diagonal());
     let camera = fly.camera(rw, rh);
-    let mut fl = FrameLoop::new(Session::new(scene, accel, camera, opts.session.clone()), opts.curve);
+    let mut fl = FrameLoop::new(Session::new(scene, accel, camera, opts.session.clone()), opts.tonemap);
     if opts.flicker {
         fl.flicker = Some(FlickerMeter::default());
     }

@@ -2,10 +2,11 @@
 //! (softbuffer's format), nearest-neighbour upscaling from the render resolution (`--scale`) to
 //! the window, and screenshots (linear EXR + the PNG exactly as displayed).
 //!
-//! The tone curves are those of [`crate::film::tonemap`] (Reinhard et al. 2002 global operator
-//! with key 0.18, or a linear exposure), made cheap enough for every frame: the log-average
-//! luminance is taken over a strided subset of at most 64k pixels, and the sRGB encoding is a
-//! table lookup.
+//! The operators are those of [`crate::film::tonemap`] (filmic, Reinhard et al. 2002 global
+//! operator with key 0.18, or a linear exposure), made cheap enough for every frame: image
+//! statistics are taken over a strided subset of at most 64k pixels, eight pixels are mapped at a
+//! time, and the sRGB encoding is a table lookup. The frame loop resolves the filmic operator's
+//! exposure per frame ([`Mapping::Filmic`]), smoothing it between frames.
 
 use std::path::Path;
 use std::sync::OnceLock;
@@ -15,16 +16,39 @@ use rayon::prelude::*;
 
 use crate::color::{linear_to_srgb, luminance};
 use crate::film::Image;
+pub use crate::film::tonemap::auto_exposure;
 use crate::output::{self, Aovs, SaveError};
 use crate::simd::{F8, Lanes};
 
-/// How the window maps radiance to display values.
+/// How one frame maps radiance to display values (a [`crate::film::Tonemap`] with its exposure
+/// resolved).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ToneCurve {
+pub enum Mapping {
+    /// Multiply by `scale`, then the filmic curve on the largest channel
+    /// ([`crate::film::tonemap::filmic_gain`]).
+    Filmic {
+        /// Exposure factor.
+        scale: f32,
+    },
     /// Reinhard's global operator, key 0.18, white point = the brightest pixel.
     Reinhard,
-    /// Multiply by 2^stops and clamp.
-    Exposure(f32),
+    /// Multiply by `scale` and clamp.
+    Linear {
+        /// Exposure factor.
+        scale: f32,
+    },
+}
+
+impl Mapping {
+    /// The mapping `film::to_srgb8` applies to a still image with `tonemap`.
+    pub fn of_still(tonemap: crate::film::Tonemap, image: &[Vec3]) -> Mapping {
+        use crate::film::Tonemap;
+        match tonemap {
+            Tonemap::Filmic(stops) => Mapping::Filmic { scale: auto_exposure(image) * 2f32.powf(stops) },
+            Tonemap::Reinhard => Mapping::Reinhard,
+            Tonemap::Exposure(stops) => Mapping::Linear { scale: 2f32.powf(stops) },
+        }
+    }
 }
 
 /// Entries of the linear → sRGB table on [0, 1].
@@ -84,38 +108,50 @@ fn luminance8(c: &[F8; 3]) -> F8 {
 }
 
 /// Tone-maps `image` into `out` (same length), one 0x00RRGGBB word per pixel.
-pub fn tonemap(image: &[Vec3], curve: ToneCurve, out: &mut [u32]) {
+pub fn tonemap(image: &[Vec3], mapping: Mapping, out: &mut [u32]) {
     assert_eq!(image.len(), out.len(), "tone-map buffers differ in size");
-    match curve {
-        ToneCurve::Exposure(stops) => {
-            let s = F8::splat(2f32.powf(stops));
+    let zero = F8::splat(0.0);
+    match mapping {
+        Mapping::Linear { scale } => {
+            let s = F8::splat(scale);
             encode_scaled(image, out, |_| s);
         }
-        ToneCurve::Reinhard => {
+        Mapping::Filmic { scale } => {
+            let s = F8::splat(scale);
+            let [a, b, c, d, e] = [2.51, 0.03, 2.43, 0.59, 0.14].map(F8::splat);
+            encode_scaled(image, out, |ch| {
+                // filmic_gain(m) · scale with m = scale · max channel: curve(m) / m, the curve
+                // as `film::tonemap::filmic_curve` writes it; black where m ≤ 0.
+                let m = ch[0].vmax(ch[1]).vmax(ch[2]) * s;
+                let curve = ((m * (a * m + b)) / (m * (c * m + d) + e)).vmax(zero).vmin(F8::splat(1.0));
+                m.le(zero).select(zero, curve / m * s)
+            });
+        }
+        Mapping::Reinhard => {
             let (scale, white) = reinhard_stats(image);
             let (one, scale, inv_white2) = (F8::splat(1.0), F8::splat(scale), F8::splat(1.0 / (white * white)));
-            encode_scaled(image, out, |lum| {
+            encode_scaled(image, out, |ch| {
                 // L_d / L with L_s = scale·L: scale·(1 + L_s / L_white²) / (1 + L_s); black
                 // where L_s ≤ 0.
-                let ls = lum * scale;
-                ls.le(F8::splat(0.0)).select(F8::splat(0.0), scale * (one + ls * inv_white2) / (one + ls))
+                let ls = luminance8(ch) * scale;
+                ls.le(zero).select(zero, scale * (one + ls * inv_white2) / (one + ls))
             });
         }
     }
 }
 
 /// Encodes each pixel of `image`, sanitised (non-finite → black, negative channels → 0) and
-/// multiplied by `gain` of its luminance, into `out` through the sRGB table: eight pixels at a
+/// multiplied by `gain` of its channels, into `out` through the sRGB table: eight pixels at a
 /// time, with the per-pixel form's operations in the same order ([`luminance`], then
 /// `(v · (LUT_SIZE − 1) + 0.5)` truncated and clamped), so the same words (tested). A third of the
 /// per-pixel form's time: per pixel it was a division, three saturating conversions and branches.
-fn encode_scaled(image: &[Vec3], out: &mut [u32], gain: impl Fn(F8) -> F8 + Sync) {
+fn encode_scaled(image: &[Vec3], out: &mut [u32], gain: impl Fn(&[F8; 3]) -> F8 + Sync) {
     let lut = srgb_lut();
     let (half, top) = (F8::splat(0.5), F8::splat((LUT_SIZE - 1) as f32));
     out.par_chunks_mut(4096).zip(image.par_chunks(4096)).for_each(|(out, image)| {
         for (o, px) in out.chunks_mut(F8::LANES).zip(image.chunks(F8::LANES)) {
             let c = sanitized8(px);
-            let g = gain(luminance8(&c));
+            let g = gain(&c);
             // Table indices: the values are ≥ 0 and not NaN here, so clamping before the
             // truncation equals the scalar truncation followed by the clamp.
             let index = c.map(|c| ((c * g) * top + half).vmin(top).trunc_int().to_array());
@@ -167,6 +203,7 @@ pub fn screenshot(png: &Path, linear: &[Vec3], displayed: &[u32], width: u32, he
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::tonemap::filmic_gain;
     use crate::film::{Tonemap, to_srgb8};
 
     #[test]
@@ -178,9 +215,8 @@ mod tests {
             })
             .collect();
         let img = Image { width: 64, height: 64, data: data.clone() };
-        for (curve, tm) in
-            [(ToneCurve::Reinhard, Tonemap::Reinhard), (ToneCurve::Exposure(-1.5), Tonemap::Exposure(-1.5))]
-        {
+        for tm in [Tonemap::Filmic(0.0), Tonemap::Filmic(-1.3), Tonemap::Reinhard, Tonemap::Exposure(-1.5)] {
+            let curve = Mapping::of_still(tm, &data);
             let mut out = vec![0u32; data.len()];
             tonemap(&data, curve, &mut out);
             let film = to_srgb8(&img, tm);
@@ -222,9 +258,15 @@ mod tests {
         };
         let s = 2f32.powf(0.7);
         let exposure = |p: Vec3| pack(sanitize(p) * s);
-        for (curve, per_pixel) in
-            [(ToneCurve::Reinhard, &reinhard as &dyn Fn(Vec3) -> u32), (ToneCurve::Exposure(0.7), &exposure)]
-        {
+        let filmic = |p: Vec3| {
+            let q = sanitize(p);
+            pack(q * (filmic_gain(q.max_element() * s) * s))
+        };
+        for (curve, per_pixel) in [
+            (Mapping::Reinhard, &reinhard as &dyn Fn(Vec3) -> u32),
+            (Mapping::Linear { scale: s }, &exposure),
+            (Mapping::Filmic { scale: s }, &filmic),
+        ] {
             let mut out = vec![0u32; data.len()];
             tonemap(&data, curve, &mut out);
             for (i, (&o, &p)) in out.iter().zip(&data).enumerate() {
@@ -261,9 +303,11 @@ mod tests {
     fn non_finite_and_negative_pixels_display_black() {
         let data = [Vec3::NAN, Vec3::splat(-1.0), Vec3::splat(f32::INFINITY), Vec3::ONE];
         let mut out = [1u32; 4];
-        tonemap(&data, ToneCurve::Reinhard, &mut out);
-        assert_eq!(&out[..3], &[0, 0, 0]);
-        assert_ne!(out[3], 0);
+        for m in [Mapping::Reinhard, Mapping::Filmic { scale: 1.0 }, Mapping::Linear { scale: 1.0 }] {
+            tonemap(&data, m, &mut out);
+            assert_eq!(&out[..3], &[0, 0, 0], "{m:?}");
+            assert_ne!(out[3], 0, "{m:?}");
+        }
     }
 
     #[test]

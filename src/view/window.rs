@@ -192,6 +192,10 @@ impl App {
             Action::Quit => self.finish(el),
             Action::ToggleHud => self.hud = !self.hud,
             Action::ToggleHelp => self.help = !self.help,
+            Action::ExposureDown | Action::ExposureUp => {
+                let msg = self.fl.adjust_exposure(if action == Action::ExposureUp { 1.0 } else { -1.0 });
+                self.set_status(msg);
+            }
             Action::Reset => {
                 self.fly = self.home.clone();
                 self.teleport = true;
@@ -307,6 +311,7 @@ impl App {
                 vpls_ahead: self.last_vpls_ahead,
                 accumulated: self.fl.session.accumulated(),
                 render_size: (rw, rh),
+                tonemap: self.fl.tonemap,
                 status: self.status.as_ref().map(|(s, _)| s.as_str()),
             })
         } else {
