@@ -362,6 +362,31 @@ pub struct Accumulation {
     pub seed: u64,
     /// Accumulate albedo / normal / depth AOVs.
     pub aovs: bool,
+    /// Fade the discontinuity buffer out as frames accumulate, with this constant K: after N
+    /// frames the image is w·(mean of the filtered frames) + (1 − w)·(mean of the same frames
+    /// unfiltered), w = K / (K + N). `None`: the filtered mean throughout (the viewer's image).
+    ///
+    /// Why: the filter averages each pixel's interleaved VPL subset with its neighbours', which
+    /// removes the interleave noise of a frame but blurs the light across each window. On a
+    /// smooth surface the blur is harmless; where the light changes within a few pixels — the
+    /// lit faces of a slit — it is a bias that accumulating frames never removes (measured on
+    /// ajar-door-thick at 256×192: the lit door-frame strip 26 % dark, the image's nMSE stuck
+    /// at 5.9 from 1 s to 16 s, against 1.3 unfiltered; benches/results/
+    /// 2026-12-03-filter-converge-nmse.md). An unfiltered pixel has seen as many VPLs as one
+    /// filtered frame after n·m frames, so K = n·m hands the image from the filter to the
+    /// unbiased mean over about that many frames; w → 0, so the image converges to the
+    /// unfiltered (unbiased) one.
+    pub filter_fade: Option<u32>,
+}
+
+impl Accumulation {
+    /// The filtered image's weight after `frames` frames ([`Accumulation::filter_fade`]).
+    pub fn filter_weight(&self, frames: u32) -> f64 {
+        match self.filter_fade {
+            Some(k) => k as f64 / (k as f64 + frames as f64),
+            None => 1.0,
+        }
+    }
 }
 
 /// Accumulates independent frames (VPL sets) until the budget is spent: N frames for
@@ -374,10 +399,13 @@ pub fn render_progressive(
     acc: Accumulation,
     progress: &ProgressBar,
 ) -> (RenderOutput, FrameStats) {
-    let Accumulation { budget, seed, aovs } = acc;
+    let Accumulation { budget, seed, aovs, .. } = acc;
     let settings = &FrameSettings { compensation_aov: aovs && settings.compensate, ..*settings };
     let cam = &scene.camera;
     let mut film = Film::new(cam.width, cam.height, FilterKind::Box, aovs);
+    // The unfiltered mean beside the filtered one, when the filter fades out.
+    let fade = settings.filter.is_some() && acc.filter_fade.is_some();
+    let mut unfiltered = vec![glam::DVec3::ZERO; if fade { cam.pixel_count() } else { 0 }];
     let start = Instant::now();
     let mut total = FrameStats::default();
     budget.start_progress(progress);
@@ -400,6 +428,16 @@ pub fn render_progressive(
             }
         }
         film.merge_tile(&tile);
+        if fade {
+            let (light, emitted) = (&frame.scratch.lent.light, &frame.gbuffer.emitted);
+            unfiltered.par_chunks_mut(4096).zip(light.par_chunks(4096).zip(emitted.par_chunks(4096))).for_each(
+                |(u, (l, e))| {
+                    for ((u, l), e) in u.iter_mut().zip(l).zip(e) {
+                        *u += (*l + *e).as_dvec3();
+                    }
+                },
+            );
+        }
         total += &frame.stats;
         spare = frame.into_spare();
         total.rays.samples += (cam.width * cam.height) as u64;
@@ -409,6 +447,9 @@ pub fn render_progressive(
         }
     }
     progress.finish_and_clear();
+    if fade {
+        film.blend_pixels(&unfiltered, acc.filter_weight(frames));
+    }
     let mut rays = total.rays;
     rays += total.sampler.rays;
     (RenderOutput { film, stats: rays, spp: frames, elapsed: start.elapsed() }, total)
@@ -454,6 +495,34 @@ mod tests {
         let again = frame(a.clone(), 9, plain.into_spare(), GBufferUse::Reuse);
         assert_eq!(again.stats.gbuffer_reused, 0);
         assert!(again.image == traced(a, 9));
+    }
+
+    /// A render whose filter fades out is, pixel by pixel, w·(the filtered render) + (1 − w)·(the
+    /// unfiltered render) of the same seed, w = K/(K + N): the unfiltered mean it keeps is that
+    /// of the same frames, and the weight is the documented one.
+    #[test]
+    fn a_faded_render_blends_the_filtered_and_unfiltered_renders() {
+        let mut scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
+        scene.camera = scene.camera.clone().with_resolution(24, 16);
+        let accel = Accel::build(&scene.mesh);
+        let settings = FrameSettings { interleave: (4, 4), vpls: 32, ..FrameSettings::interactive() };
+        let frames = 6;
+        let run = |settings: &FrameSettings, fade: Option<u32>| {
+            let acc = Accumulation { budget: Budget::Samples(frames), seed: 11, aovs: false, filter_fade: fade };
+            render_progressive(&scene, &accel, &mut Sir::new(4), settings, acc, &ProgressBar::hidden()).0.film.image()
+        };
+        let filtered = run(&settings, None);
+        let unfiltered = run(&FrameSettings { filter: None, ..settings }, None);
+        let faded = run(&settings, Some(10));
+        let w = 10.0 / (10.0 + frames as f32);
+        assert!(filtered != unfiltered, "the filter changes the image");
+        for ((f, u), x) in filtered.data.iter().zip(&unfiltered.data).zip(&faded.data) {
+            let expected = *f * w + *u * (1.0 - w);
+            assert!((*x - expected).abs().max_element() <= 1e-5 * (1.0 + expected.max_element()), "{x} ≠ {expected}");
+        }
+        let acc = Accumulation { budget: Budget::Samples(1), seed: 0, aovs: false, filter_fade: Some(64) };
+        assert_eq!((acc.filter_weight(0), acc.filter_weight(64)), (1.0, 0.5));
+        assert_eq!(Accumulation { filter_fade: None, ..acc }.filter_weight(1000), 1.0);
     }
 
     /// The compensation layer is each pixel's residual alone: the compensated frame minus it is

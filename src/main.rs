@@ -42,13 +42,32 @@ enum Command {
     /// VPL-sampler report (papers/002 §7.3–7.5): generation time, rejection rate and
     /// single-frame relMSE of every strategy, same gather and clamp for all.
     Samplers(ReportArgs),
-    /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), normalised relMSE (the
-    /// same with both divided by B's mean luminance), mean bias; B is the reference.
+    /// Tone-map an EXR into a PNG with the operators of `render` (to look at two images at the
+    /// same exposure: `--tonemap exposure --exposure S`).
+    Png {
+        /// Input EXR.
+        input: PathBuf,
+        /// Output PNG (default: the input with extension .png).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Tone mapping.
+        #[arg(long, value_enum, default_value_t = mirage::options::TonemapArg::Filmic)]
+        tonemap: mirage::options::TonemapArg,
+        /// Exposure in stops (filmic: added to the automatic exposure; exposure: 2^stops).
+        #[arg(long, allow_hyphen_values = true)]
+        exposure: Option<f32>,
+    },
+    /// Compare two EXR images: MSE, relMSE (mean of (a−b)²/(b²+0.01)), nMSE (MSE / m², m = B's
+    /// mean luminance), mean bias; B is the reference.
     Diff {
         /// Test image.
         a: PathBuf,
         /// Reference image.
         b: PathBuf,
+        /// Also write each pixel's squared error over m² (its share of nMSE, mean of the three
+        /// channels) as an EXR, to see where an error comes from.
+        #[arg(long, value_name = "EXR")]
+        map: Option<PathBuf>,
     },
 }
 
@@ -90,8 +109,8 @@ struct ReportArgs {
     #[arg(long, value_enum, default_value_t = Workload::Default)]
     workload: Workload,
     /// The error the converge table gives: `relmse` ((x − r)² / (r² + 0.01), which on dark
-    /// scenes is close to an absolute error) or `normalised` (the same with both images scaled to
-    /// mean luminance 1: it does not change with exposure).
+    /// scenes is close to an absolute error) or `nmse` (MSE / m², m the reference's mean
+    /// luminance: it does not change with exposure).
     #[arg(long, value_enum, default_value_t = mirage::report::Metric::Relmse)]
     metric: mirage::report::Metric,
     /// Write the markdown here (and SVG plots beside it); default: print only.
@@ -114,7 +133,8 @@ fn main() -> ExitCode {
         Command::Render(args) => cmd_render(&args),
         Command::View(args) => mirage::view::run(&args).map_err(|e| anyhow::anyhow!(e)),
         Command::Info { scene } => cmd_info(scene.as_deref()),
-        Command::Diff { a, b } => cmd_diff(&a, &b),
+        Command::Diff { a, b, map } => cmd_diff(&a, &b, map.as_deref()),
+        Command::Png { input, output, tonemap, exposure } => cmd_png(&input, output.as_deref(), tonemap, exposure),
         Command::Converge(args) => cmd_report(&args, false),
         Command::Samplers(args) => cmd_report(&args, true),
     };
@@ -238,7 +258,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         let compensated = options.frame.compensate && options.frame.clamp > 0.0;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
         println!(
-            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms; {}{}",
+            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms{}; {}{}",
             out.spp,
             options.frame.vpls,
             options.vpl_sampler.build_with(&options.sampler).name(),
@@ -252,6 +272,18 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
                 String::new()
             },
             fs.filter_time.as_secs_f64() * 1e3 / frames,
+            match (options.frame.filter, options.filter_fade) {
+                (Some(_), Some(k)) => {
+                    let acc = mirage::frame::Accumulation {
+                        budget: options.offline.budget,
+                        seed: 0,
+                        aovs: false,
+                        filter_fade: Some(k),
+                    };
+                    format!(" (faded out: weight {:.3} after {} frames)", acc.filter_weight(out.spp), out.spp)
+                }
+                _ => String::new(),
+            },
             clamp_summary(&fs.energy, compensated),
             fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default()
         );
@@ -352,7 +384,21 @@ fn cmd_info(scene: Option<&str>) -> Result<()> {
     Ok(())
 }
 
-fn cmd_diff(a: &Path, b: &Path) -> Result<()> {
+fn cmd_png(
+    input: &Path,
+    output: Option<&Path>,
+    tonemap: mirage::options::TonemapArg,
+    exposure: Option<f32>,
+) -> Result<()> {
+    let tm = tonemap.with_exposure(exposure).map_err(|e| anyhow::anyhow!(e))?;
+    let img = output::read_exr(input)?;
+    let out = output.map_or_else(|| input.with_extension("png"), Path::to_path_buf);
+    output::write_png(&out, &img, tm)?;
+    println!("{} → {}", input.display(), out.display());
+    Ok(())
+}
+
+fn cmd_diff(a: &Path, b: &Path, map: Option<&Path>) -> Result<()> {
     let ia = output::read_exr(a)?;
     let ib = output::read_exr(b)?;
     if (ia.width, ia.height) != (ib.width, ib.height) {
@@ -360,12 +406,28 @@ fn cmd_diff(a: &Path, b: &Path) -> Result<()> {
     }
     let e = ia.errors(&ib);
     println!(
-        "mse {:.6e}  relmse {:.6e}  normalised relmse {:.6e}  mean_bias {:+.4} %",
+        "mse {:.6e}  relmse {:.6e}  nmse {:.6e}  mean_bias {:+.4} %",
         e.mse,
         e.rel_mse,
-        e.rel_mse_normalised,
+        e.nmse,
         100.0 * e.mean_bias
     );
+    if let Some(path) = map {
+        let m = ib.mean_luminance();
+        let m2 = if m > 0.0 { (m * m) as f32 } else { 1.0 };
+        let data = ia
+            .data
+            .iter()
+            .zip(&ib.data)
+            .map(|(x, r)| {
+                let d = (*x - *r) * (*x - *r) / m2;
+                glam::Vec3::splat((d.x + d.y + d.z) / 3.0)
+            })
+            .collect();
+        let img = mirage::film::Image { width: ia.width, height: ia.height, data };
+        output::write_exr(path, &img, Default::default())?;
+        println!("per-pixel squared error / m² → {}", path.display());
+    }
     Ok(())
 }
 
@@ -395,7 +457,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         })
         .unwrap_or_default();
     md += &format!(
-        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer on. {} run(s) per cell.\n\n",
+        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer faded out over the frames (weight n·m / (n·m + frames); -filtered: throughout, -unfiltered: off). {} run(s) per cell.\n\n",
         rayon::current_num_threads(),
         width,
         height,

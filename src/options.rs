@@ -359,6 +359,13 @@ pub struct RenderArgs {
     /// Rendering mode.
     #[arg(long, value_enum, default_value_t = Mode::Mir)]
     pub mode: Mode,
+    /// ir / mir: fade the discontinuity buffer out as frames accumulate: after N frames the
+    /// image is w·filtered + (1 − w)·unfiltered with w = K/(K + N). `auto`: K = the interleave
+    /// tile's pixel count (64 for 8x8); a number: that K; `never`: filtered throughout (the
+    /// viewer's look, with the filter's blur where light changes within a few pixels, e.g. the
+    /// lit faces of a slit).
+    #[arg(long, value_parser = parse_filter_fade, default_value = "auto", value_name = "auto|never|K")]
+    pub filter_fade: FilterFade,
     /// Samples per pixel (pt, bdpt) or independent VPL sets accumulated (ir, mir); default 64
     /// when no --time is given.
     #[arg(long, conflicts_with = "time")]
@@ -464,6 +471,8 @@ pub struct RenderOptions {
     pub sampler: SamplerConfig,
     /// ir: the frame pipeline settings.
     pub frame: crate::frame::FrameSettings,
+    /// ir / mir: the discontinuity buffer's fade constant ([`crate::frame::Accumulation`]).
+    pub filter_fade: Option<u32>,
     /// pssmlt: the chains' settings.
     pub pssmlt: crate::offline::pssmlt::PssmltSettings,
 }
@@ -567,7 +576,42 @@ impl RenderArgs {
                 ..self.gather.frame_settings()
             },
             pssmlt,
+            filter_fade: self.filter_fade.constant(self.gather.interleave),
         })
+    }
+}
+
+/// `--filter-fade`: how the discontinuity buffer fades out of an accumulated render.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilterFade {
+    /// K = n·m of the interleave tile.
+    Auto,
+    /// Filtered throughout.
+    Never,
+    /// This K.
+    Frames(u32),
+}
+
+impl FilterFade {
+    /// The fade constant for an n×m interleave, `None` for never.
+    pub fn constant(self, (n, m): (u32, u32)) -> Option<u32> {
+        match self {
+            FilterFade::Auto => Some(n * m),
+            FilterFade::Never => None,
+            FilterFade::Frames(k) => Some(k),
+        }
+    }
+}
+
+/// Parses `--filter-fade`: auto, never, or K (1…1000000).
+pub fn parse_filter_fade(v: &str) -> Result<FilterFade, String> {
+    match v {
+        "auto" => Ok(FilterFade::Auto),
+        "never" => Ok(FilterFade::Never),
+        _ => match v.parse::<u32>() {
+            Ok(k) if (1..=1_000_000).contains(&k) => Ok(FilterFade::Frames(k)),
+            _ => Err(format!("'{v}' is not auto, never or a frame count 1…1000000")),
+        },
     }
 }
 

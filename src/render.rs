@@ -131,7 +131,8 @@ pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &
         Mode::Ir | Mode::Mir => {
             let mut sampler = options.vpl_sampler.build_with(&options.sampler);
             let o = &options.offline;
-            let acc = frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs };
+            let acc =
+                frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs, filter_fade: options.filter_fade };
             let (out, stats) = frame::render_progressive(scene, accel, sampler.as_mut(), &options.frame, acc, progress);
             Rendered { out, frame: Some(stats), pssmlt: None }
         }

@@ -37,21 +37,43 @@ pub enum Method {
         config: SamplerConfig,
         /// The clamp compensated (as `render` draws; suffix `-uncompensated` turns it off).
         compensate: bool,
+        /// The discontinuity buffer: faded out over the frames as `render` does (default),
+        /// throughout (suffix `-filtered`) or off (`-unfiltered`).
+        filter: FilterUse,
     },
+}
+
+/// How a VPL method in a report uses the discontinuity buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilterUse {
+    /// Faded out as frames accumulate (`render`'s `--filter-fade auto`).
+    Faded,
+    /// Filtered throughout (`--filter-fade never`; the viewer's image).
+    Always,
+    /// Off (`--no-filter`).
+    Off,
 }
 
 impl Method {
     /// Parses `pt`, `bdpt`, `sir`, `sir-cdf`, `bir`, `mh`, `mtmh`, with optional suffixes
-    /// `-pss` (primary-sample-space kernel) and `-cdf` (light-source CDF) for mh / mtmh, and a
-    /// final `-uncompensated` for any VPL method (the clamp left uncompensated).
+    /// `-pss` (primary-sample-space kernel) and `-cdf` (light-source CDF) for mh / mtmh, then
+    /// `-uncompensated` (the clamp left uncompensated) and `-unfiltered` (no discontinuity
+    /// buffer) or `-filtered` (the buffer not faded out) for any VPL method, in that order.
     pub fn parse(s: &str) -> Result<Method, String> {
         let whole = s;
+        let (s, filter) = if let Some(base) = s.strip_suffix("-unfiltered") {
+            (base, FilterUse::Off)
+        } else if let Some(base) = s.strip_suffix("-filtered") {
+            (base, FilterUse::Always)
+        } else {
+            (s, FilterUse::Faded)
+        };
         let (s, compensate) = match s.strip_suffix("-uncompensated") {
             Some(base) => (base, false),
             None => (s, true),
         };
-        if !compensate && matches!(s, "pt" | "bdpt" | "pssmlt") {
-            return Err(format!("'{whole}': -uncompensated applies to VPL methods only"));
+        if !(compensate && filter == FilterUse::Faded) && matches!(s, "pt" | "bdpt" | "pssmlt") {
+            return Err(format!("'{whole}': -uncompensated, -filtered and -unfiltered apply to VPL methods only"));
         }
         let mut config = SamplerConfig::default();
         let sampler = match s {
@@ -83,7 +105,7 @@ impl Method {
                 base
             }
         };
-        Ok(Method::Vpl { sampler, config, compensate })
+        Ok(Method::Vpl { sampler, config, compensate, filter })
     }
 
     /// A label for tables.
@@ -92,7 +114,7 @@ impl Method {
             Method::Pt => "pt".into(),
             Method::Bdpt => "bdpt".into(),
             Method::Pssmlt => "pssmlt".into(),
-            Method::Vpl { sampler, config, compensate } => {
+            Method::Vpl { sampler, config, compensate, filter } => {
                 let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
                 if sampler.is_metropolis() {
                     l += if config.kernel == KernelArg::Pss { "-pss" } else { "-bidir" };
@@ -102,6 +124,11 @@ impl Method {
                 }
                 if !compensate {
                     l += "-uncompensated";
+                }
+                match filter {
+                    FilterUse::Faded => {}
+                    FilterUse::Always => l += "-filtered",
+                    FilterUse::Off => l += "-unfiltered",
                 }
                 l
             }
@@ -152,10 +179,15 @@ pub fn run(
             let acceptance = (p > 0).then(|| a as f64 / p as f64);
             Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance }
         }
-        Method::Vpl { sampler, config, compensate } => {
+        Method::Vpl { sampler, config, compensate, filter } => {
             let mut s = sampler.build_with(config);
-            let acc = Accumulation { budget, seed, aovs: false };
-            let settings = FrameSettings { compensate: frame_settings.compensate && *compensate, ..*frame_settings };
+            let fade = (*filter == FilterUse::Faded).then(|| frame_settings.interleave.0 * frame_settings.interleave.1);
+            let acc = Accumulation { budget, seed, aovs: false, filter_fade: fade };
+            let settings = FrameSettings {
+                compensate: frame_settings.compensate && *compensate,
+                filter: frame_settings.filter.filter(|_| *filter != FilterUse::Off),
+                ..*frame_settings
+            };
             let (o, st) = frame::render_progressive(scene, accel, s.as_mut(), &settings, acc, &hidden);
             Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: st.sampler.acceptance_rate() }
         }
@@ -189,10 +221,9 @@ pub enum Metric {
     /// Mean of (x − r)² / (r² + 0.01) over pixels and channels: the constant keeps black pixels
     /// finite, and dominates where the image is darker than 0.1.
     Relmse,
-    /// The same after both images are divided by the reference's mean luminance m, i.e.
-    /// (x − r)² / (r² + 0.01·m²): independent of exposure, so dark scenes are compared by their
-    /// relative error too.
-    Normalised,
+    /// MSE / m², m the reference's mean luminance: independent of exposure, so dark scenes are
+    /// compared too, and a noisy reference adds the same constant to every method.
+    Nmse,
 }
 
 impl Metric {
@@ -200,7 +231,7 @@ impl Metric {
     pub fn of(self, e: &crate::film::ImageErrors) -> f64 {
         match self {
             Metric::Relmse => e.rel_mse,
-            Metric::Normalised => e.rel_mse_normalised,
+            Metric::Nmse => e.nmse,
         }
     }
 
@@ -208,7 +239,7 @@ impl Metric {
     pub fn name(self) -> &'static str {
         match self {
             Metric::Relmse => "relMSE",
-            Metric::Normalised => "normalised relMSE",
+            Metric::Nmse => "nMSE",
         }
     }
 
@@ -216,8 +247,8 @@ impl Metric {
     pub fn definition(self) -> &'static str {
         match self {
             Metric::Relmse => "relMSE = mean over pixels and channels of (x − r)² / (r² + 0.01)",
-            Metric::Normalised => {
-                "normalised relMSE = mean over pixels and channels of (x − r)² / (r² + 0.01·m²), m the reference's mean luminance (relMSE of both images at mean 1: it does not depend on exposure)"
+            Metric::Nmse => {
+                "nMSE = mean over pixels and channels of (x − r)², divided by m², m the reference's mean luminance (the MSE of both images scaled to mean 1: it does not depend on exposure; the reference's own noise adds the same Var(r)/m² to every method)"
             }
         }
     }
@@ -407,8 +438,13 @@ pub fn sampler_row(
     reference: &Image,
     frame_settings: &FrameSettings,
 ) -> SamplerRow {
-    let Method::Vpl { sampler, config, compensate } = method else { panic!("sampler rows need a VPL method") };
-    let settings = FrameSettings { vpls: m, compensate: frame_settings.compensate && *compensate, ..*frame_settings };
+    let Method::Vpl { sampler, config, compensate, filter } = method else { panic!("sampler rows need a VPL method") };
+    let settings = FrameSettings {
+        vpls: m,
+        compensate: frame_settings.compensate && *compensate,
+        filter: frame_settings.filter.filter(|_| *filter != FilterUse::Off),
+        ..*frame_settings
+    };
     let (mut time, mut vpls, mut rel, mut acc, mut prop) = (0.0, 0.0, 0.0, 0u64, 0u64);
     for f in 0..frames {
         let mut s = sampler.build_with(config);
@@ -475,14 +511,29 @@ mod tests {
 
     #[test]
     fn methods_parse_with_their_suffixes_and_label_back() {
-        for m in
-            ["pt", "bdpt", "pssmlt", "sir", "sir-uncompensated", "mtmh-bidir", "mtmh-pss-cdf-uncompensated", "mh-pss"]
-        {
+        for m in [
+            "pt",
+            "bdpt",
+            "pssmlt",
+            "sir",
+            "sir-uncompensated",
+            "sir-unfiltered",
+            "mtmh-filtered",
+            "mtmh-bidir",
+            "mtmh-pss-cdf-uncompensated-unfiltered",
+            "mh-pss",
+        ] {
             let label = Method::parse(m).unwrap().label();
             assert_eq!(Method::parse(&label).unwrap(), Method::parse(m).unwrap(), "{m} → {label}");
         }
         assert!(matches!(Method::parse("sir-uncompensated"), Ok(Method::Vpl { compensate: false, .. })));
         assert!(Method::parse("pt-uncompensated").unwrap_err().contains("VPL methods only"));
+        assert!(Method::parse("bdpt-unfiltered").unwrap_err().contains("VPL methods only"));
+        assert!(matches!(
+            Method::parse("mtmh-unfiltered"),
+            Ok(Method::Vpl { filter: FilterUse::Off, compensate: true, .. })
+        ));
+        assert!(matches!(Method::parse("sir-filtered"), Ok(Method::Vpl { filter: FilterUse::Always, .. })));
         assert!(Method::parse("mtmh-foo").is_err());
     }
 }

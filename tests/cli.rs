@@ -5,6 +5,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use mirage::film::Image;
+use mirage::output;
+
 fn mirage(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_mirage")).args(args).output().expect("mirage runs")
 }
@@ -203,4 +206,27 @@ fn info_and_diff_report_on_files() {
     assert!(s.contains("triangles  32") && s.contains("emitters"), "{s}");
     let o = mirage(&["diff", "missing-a.exr", "missing-b.exr"]);
     assert_clean_failure(&o, "missing-a.exr");
+    assert_clean_failure(&mirage(&["png", "missing-c.exr"]), "missing-c.exr");
+
+    // diff of an image against itself scaled by 2: nMSE = mean((x − 2x)²)/(2m)² over channels,
+    // the --map image's mean; png writes the tone-mapped picture.
+    let dir = tmp("diff-map");
+    let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
+    let img = Image { width: 2, height: 1, data: vec![glam::Vec3::new(1.0, 0.0, 0.0), glam::Vec3::splat(0.5)] };
+    output::write_exr(&a, &img, Default::default()).unwrap();
+    output::write_exr(&b, &img.scaled(2.0), Default::default()).unwrap();
+    let map = dir.join("map.exr");
+    let o = mirage(&["diff", a.to_str().unwrap(), b.to_str().unwrap(), "--map", map.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let m = 2.0 * img.mean_luminance();
+    let expected = (1.0 + 3.0 * 0.25) / 6.0 / (m * m);
+    let s = String::from_utf8_lossy(&o.stdout);
+    let got: f64 = s.split("nmse ").nth(1).and_then(|t| t.split_whitespace().next()).unwrap().parse().unwrap();
+    assert!((got / expected - 1.0).abs() < 1e-4, "{s}: nMSE {got} against {expected}");
+    let mean_map = output::read_exr(&map).unwrap().mean_luminance();
+    assert!((mean_map / expected - 1.0).abs() < 1e-4, "map mean {mean_map} against {expected}");
+    let o = mirage(&["png", a.to_str().unwrap(), "--tonemap", "exposure", "--exposure", "-1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let png = image::open(dir.join("a.png")).unwrap().to_rgb8();
+    assert_eq!(png.get_pixel(0, 0).0, [188, 0, 0], "1.0 at −1 stop is 0.5 → sRGB 188");
 }

@@ -39,7 +39,12 @@ fn ir_estimate(
                 a,
                 sampler.as_mut(),
                 settings,
-                frame::Accumulation { budget: Budget::Samples(frames), seed: seed + 1000 * b, aovs: false },
+                frame::Accumulation {
+                    budget: Budget::Samples(frames),
+                    seed: seed + 1000 * b,
+                    aovs: false,
+                    filter_fade: None,
+                },
                 &ProgressBar::hidden(),
             );
             let img = out.film.image();

@@ -75,7 +75,8 @@ fn mir_estimate(
     let imgs: Vec<Image> = (0..batches)
         .map(|b| {
             let mut sampler = kind.build_with(&SamplerConfig { kernel, ..Default::default() });
-            let acc = Accumulation { budget: Budget::Samples(frames), seed: seed + 1000 * b, aovs: false };
+            let acc =
+                Accumulation { budget: Budget::Samples(frames), seed: seed + 1000 * b, aovs: false, filter_fade: None };
             let (out, _) = frame::render_progressive(s, a, sampler.as_mut(), &settings, acc, &ProgressBar::hidden());
             let img = out.film.image();
             assert_eq!(img.non_finite_count(), 0);
@@ -265,19 +266,20 @@ fn parallel_chains_give_the_same_vpls_on_one_and_two_threads() {
     assert_eq!(one, run(2));
 }
 
-/// Eight independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler,
-/// checked finite, as batches.
+/// Eight independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler and
+/// the filter faded out with `fade` ([`Accumulation::filter_fade`]), checked finite, as batches.
 fn seed_runs(
     name: &str,
     s: &Scene,
     a: &Accel,
     sampler: impl Fn() -> Box<dyn VplSampler>,
-    settings: &FrameSettings,
+    (settings, fade): (&FrameSettings, Option<u32>),
     seed0: u64,
 ) -> Estimate {
     let imgs: Vec<Image> = (0..8u64)
         .map(|b| {
-            let acc = Accumulation { budget: Budget::Samples(16), seed: seed0 + 1000 * b, aovs: false };
+            let acc =
+                Accumulation { budget: Budget::Samples(16), seed: seed0 + 1000 * b, aovs: false, filter_fade: fade };
             let (out, _) = frame::render_progressive(s, a, sampler().as_mut(), settings, acc, &ProgressBar::hidden());
             let img = out.film.image();
             assert_eq!(img.non_finite_count(), 0, "{name}");
@@ -332,7 +334,7 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
         let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::compensated(256) };
         let run = |kind: VplSamplerArg, kernel: KernelArg, settings: &FrameSettings| {
             let config = SamplerConfig { kernel, ..Default::default() };
-            seed_runs(name, &s, &a, || kind.build_with(&config), settings, 31)
+            seed_runs(name, &s, &a, || kind.build_with(&config), (settings, None), 31)
         };
         for (kind, kernel) in [
             (VplSamplerArg::Mtmh, KernelArg::Bidir),
@@ -365,7 +367,7 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
 }
 
 /// The options of `mirage render --mode mir` with no other flag (mtmh, 256 VPLs, 8×8
-/// interleave, clamp 300 compensated, discontinuity buffer on), at the given image size.
+/// interleave, clamp 300 compensated, discontinuity buffer faded out), at the given image size.
 fn default_render_options(w: u32, h: u32) -> mirage::options::RenderOptions {
     use clap::Parser;
     #[derive(Parser)]
@@ -377,7 +379,8 @@ fn default_render_options(w: u32, h: u32) -> mirage::options::RenderOptions {
     Cli::parse_from(["mirage", "--mode", "mir", "--width", &w, "--height", &h]).render.options().unwrap()
 }
 
-/// What a user gets from the default `mirage render` (MIR, clamp 300 compensated, filter on):
+/// What a user gets from the default `mirage render` (MIR, clamp 300 compensated, filter faded
+/// out over the frames):
 /// on every built-in diffuse scene, easy and hard, the image mean over 8 seeds agrees with
 /// pt's. Checked two ways: within four standard errors of the difference (the seeds' spread
 /// is what resolves a bias), and, where that resolution is finer than 1 % of the mean, within
@@ -388,6 +391,7 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
     let (w, h) = (32, 24);
     let options = default_render_options(w, h);
     assert!(options.frame.compensate && options.frame.clamp == 300.0 && options.frame.filter.is_some());
+    assert_eq!(options.filter_fade, Some(64));
     let mut unresolved = Vec::new();
     for name in builtin::NAMES.into_iter().filter(|n| *n != "glass-sphere") {
         let (s, a) = scene(builtin::by_name(name).unwrap(), w, h);
@@ -401,7 +405,8 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
             .collect();
         let (r, se_r, ..) = seed_spread(&Estimate::from_batches(&imgs));
         let run = |settings: &FrameSettings| {
-            seed_spread(&seed_runs(name, &s, &a, || options.vpl_sampler.build_with(&options.sampler), settings, 7))
+            let sampler = || options.vpl_sampler.build_with(&options.sampler);
+            seed_spread(&seed_runs(name, &s, &a, sampler, (settings, options.filter_fade), 7))
         };
         let (m, se, med, lo, hi) = run(&options.frame);
         let sd = (se * se + se_r * se_r).sqrt();

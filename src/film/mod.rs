@@ -203,6 +203,16 @@ impl Film {
         }
     }
 
+    /// Replaces each pixel's sum by `w`·(its sum) + (1 − w)·`other[i]`, where `other` holds
+    /// per-pixel sums of as many unit-weight samples as the pixel's weight: the image becomes
+    /// w·this + (1 − w)·(other's mean).
+    pub fn blend_pixels(&mut self, other: &[DVec3], w: f64) {
+        assert_eq!(self.pixels.len(), other.len(), "blended sums differ in size");
+        for (p, o) in self.pixels.iter_mut().zip(other) {
+            p.sum = p.sum * w + *o * (1.0 - w);
+        }
+    }
+
     /// Records that one more set of light paths (one per pixel on average) has been splatted.
     pub fn add_splat_pass(&mut self) {
         self.splat_passes += 1;
