@@ -382,10 +382,16 @@ pub struct Accumulation {
 impl Accumulation {
     /// The filtered image's weight after `frames` frames ([`Accumulation::filter_fade`]).
     pub fn filter_weight(&self, frames: u32) -> f64 {
-        match self.filter_fade {
-            Some(k) => k as f64 / (k as f64 + frames as f64),
-            None => 1.0,
-        }
+        filter_weight(self.filter_fade, frames)
+    }
+}
+
+/// The filtered image's weight after `frames` frames with fade constant `fade`:
+/// K / (K + N), 1 without a fade.
+pub fn filter_weight(fade: Option<u32>, frames: u32) -> f64 {
+    match fade {
+        Some(k) => k as f64 / (k as f64 + frames as f64),
+        None => 1.0,
     }
 }
 

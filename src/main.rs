@@ -274,13 +274,8 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             fs.filter_time.as_secs_f64() * 1e3 / frames,
             match (options.frame.filter, options.filter_fade) {
                 (Some(_), Some(k)) => {
-                    let acc = mirage::frame::Accumulation {
-                        budget: options.offline.budget,
-                        seed: 0,
-                        aovs: false,
-                        filter_fade: Some(k),
-                    };
-                    format!(" (faded out: weight {:.3} after {} frames)", acc.filter_weight(out.spp), out.spp)
+                    let w = mirage::frame::filter_weight(Some(k), out.spp);
+                    format!(" (faded out: weight {w:.3} after {} frames)", out.spp)
                 }
                 _ => String::new(),
             },
