@@ -13,10 +13,14 @@ use crate::film::{AovSample, Film, FilmTile, FilterKind};
 use crate::filter::{DiscontinuitySettings, Masks, PlaneLayout, filter_planes};
 use crate::gather::{self, CameraRays, GBuffer, GatherEnergy, Gathered, Interleave, Lent, OnePass, Tracing};
 use crate::offline::{Budget, RenderOutput};
+use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 use crate::vpl::transfer::g_bound;
 use crate::vpl::{SamplerStats, VplSampler, VplSet};
+
+/// Stream tag of a frame's interleave rotation ([`Interleave::rotated`]).
+const TAG_INTERLEAVE_ROTATION: u64 = 0x524f_5441_5445;
 
 /// Settings of the VPL pipeline.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -177,6 +181,12 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// The frame without the discontinuity buffer, per pixel: its gathered light (clamp
+    /// compensation included) and the emission seen directly, to be added.
+    pub fn unfiltered(&self) -> (&[Vec3], &[Vec3]) {
+        (&self.scratch.lent.light, &self.gbuffer.emitted)
+    }
+
     /// The frame's buffers for the next frame to reuse (the G-buffer with them).
     pub fn into_spare(self) -> Spare {
         Spare {
@@ -253,7 +263,8 @@ pub fn gather_frame_reusing(
         Interleave::for_image(&vpls, n, m, camera.pixel_count())
     } else {
         Interleave::new(&vpls, n, m)
-    };
+    }
+    .rotated(hash_words(&[seed, TAG_INTERLEAVE_ROTATION]));
     let filter = match settings.filter {
         Some((angle, depth)) if n * m > 1 => {
             Some(DiscontinuitySettings { n, m, max_normal_angle_deg: angle, max_relative_depth: depth })
@@ -435,7 +446,7 @@ pub fn render_progressive(
         }
         film.merge_tile(&tile);
         if fade {
-            let (light, emitted) = (&frame.scratch.lent.light, &frame.gbuffer.emitted);
+            let (light, emitted) = frame.unfiltered();
             unfiltered.par_chunks_mut(4096).zip(light.par_chunks(4096).zip(emitted.par_chunks(4096))).for_each(
                 |(u, (l, e))| {
                     for ((u, l), e) in u.iter_mut().zip(l).zip(e) {

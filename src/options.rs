@@ -106,6 +106,14 @@ pub struct GatherArgs {
     /// everywhere. Same image; see benches/gather.rs.
     #[arg(long, value_enum, default_value_t = RaysArg::Primary)]
     pub rays: RaysArg,
+    /// Fade the discontinuity buffer out as frames accumulate (in `render`, and in the viewer
+    /// while the camera stands still): after N frames the image is w·filtered + (1 − w)·unfiltered
+    /// with w = K/(K + N), so it converges to the unbiased, unfiltered mean. `auto`: K = the
+    /// interleave tile's pixel count (64 for 8x8); a number: that K; `never`: filtered
+    /// throughout, with the filter's blur where light changes within a few pixels (the lit
+    /// faces of a slit).
+    #[arg(long, value_parser = parse_filter_fade, default_value = "auto", value_name = "auto|never|K")]
+    pub filter_fade: FilterFade,
     /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
     #[arg(long, default_value_t = 20.0)]
     pub filter_angle: f32,
@@ -359,13 +367,6 @@ pub struct RenderArgs {
     /// Rendering mode.
     #[arg(long, value_enum, default_value_t = Mode::Mir)]
     pub mode: Mode,
-    /// ir / mir: fade the discontinuity buffer out as frames accumulate: after N frames the
-    /// image is w·filtered + (1 − w)·unfiltered with w = K/(K + N). `auto`: K = the interleave
-    /// tile's pixel count (64 for 8x8); a number: that K; `never`: filtered throughout (the
-    /// viewer's look, with the filter's blur where light changes within a few pixels, e.g. the
-    /// lit faces of a slit).
-    #[arg(long, value_parser = parse_filter_fade, default_value = "auto", value_name = "auto|never|K")]
-    pub filter_fade: FilterFade,
     /// Samples per pixel (pt, bdpt) or independent VPL sets accumulated (ir, mir); default 64
     /// when no --time is given.
     #[arg(long, conflicts_with = "time")]
@@ -576,7 +577,7 @@ impl RenderArgs {
                 ..self.gather.frame_settings()
             },
             pssmlt,
-            filter_fade: self.filter_fade.constant(self.gather.interleave),
+            filter_fade: self.gather.filter_fade.constant(self.gather.interleave),
         })
     }
 }

@@ -226,6 +226,7 @@ impl ViewArgs {
                 reuse_frames: self.vpl_reuse,
                 gbuffer_frames: self.gbuffer_frames,
                 ahead: self.vpls_ahead,
+                filter_fade: self.gather.filter_fade,
             },
             scale: self.scale,
             tonemap,

@@ -15,8 +15,8 @@ use super::error::ViewError;
 use super::measure::{FlickerMeter, is_checkpoint};
 use super::present::{self, Mapping};
 use super::session::{FrameOutcome, Motion, Session};
-use crate::film::Image;
 use crate::film::Tonemap;
+use crate::film::{Image, ImageErrors};
 use crate::output::{self, Aovs};
 
 /// Seconds per stage (one frame, a sum, or a smoothed value).
@@ -149,8 +149,8 @@ pub struct FrameReport {
     pub motion: Motion,
     /// d_t of the flicker measure, when measured.
     pub flicker: Option<f64>,
-    /// relMSE of the running mean against the reference, at checkpoints.
-    pub rel_mse: Option<f64>,
+    /// Errors of the running mean against the reference, at checkpoints.
+    pub errors: Option<ImageErrors>,
     /// Gathered from a held G-buffer (no camera rays).
     pub gbuffer_held: bool,
     /// Its VPLs were sampled during the previous frame's gather.
@@ -184,8 +184,8 @@ pub struct FrameLoop {
     pub flicker: Option<FlickerMeter>,
     /// Reference image for the convergence report.
     pub reference: Option<(PathBuf, Image)>,
-    /// (accumulated frames, relMSE) at the checkpoints.
-    pub convergence: Vec<(u64, f64)>,
+    /// (accumulated frames, errors) at the checkpoints.
+    pub convergence: Vec<(u64, ImageErrors)>,
     /// Directory of recorded frames and whether EXRs are written too.
     pub record: Option<(PathBuf, bool)>,
     /// Sums over the run.
@@ -273,9 +273,9 @@ impl FrameLoop {
         let flicker = self.flicker.as_mut().and_then(|m| m.push(&outcome.image));
         self.session.recycle(outcome.image);
         let accumulated = self.session.accumulated() as u64;
-        let rel_mse = match &self.reference {
+        let errors = match &self.reference {
             Some((_, r)) if is_checkpoint(accumulated) => {
-                let e = self.mean_image().errors(r).rel_mse;
+                let e = self.mean_image().errors(r);
                 self.convergence.push((accumulated, e));
                 Some(e)
             }
@@ -298,7 +298,7 @@ impl FrameLoop {
             vpls_reused: outcome.vpls_reused,
             motion: outcome.motion,
             flicker,
-            rel_mse,
+            errors,
             gbuffer_held: s.gbuffer_reused > 0,
             vpls_ahead: outcome.vpls_ahead,
         })
@@ -357,7 +357,11 @@ impl FrameLoop {
                 (true, false) => format!("{}", s.frame.clamp),
                 _ => "off".into(),
             },
-            if s.frame.filter.is_some() { "on" } else { "off" },
+            match (s.frame.filter, self.session.filter_weight()) {
+                (Some(_), Some(w)) => format!("on (faded out: weight {w:.3} at the end)"),
+                (Some(_), None) => "on".into(),
+                (None, _) => "off".into(),
+            },
             chains_label(s.fresh_chains, s.reuse_frames),
             t.fps(),
             ms(pf.frame),

@@ -23,8 +23,8 @@ pub fn run(mut fl: FrameLoop, mut fly: FlyCamera, opts: &ViewOptions, name: &str
             fl.session.set_camera(fly.camera(w, h));
         }
         let report = fl.frame()?;
-        if let Some(e) = report.rel_mse {
-            println!("  {:>7} frames: relMSE {e:.5e}", fl.session.accumulated());
+        if let Some(e) = report.errors {
+            println!("  {:>7} frames: relMSE {:.5e}, nMSE {:.5e}", fl.session.accumulated(), e.rel_mse, e.nmse);
         }
     }
     if let Some(m) = &fl.flicker {

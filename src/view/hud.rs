@@ -42,6 +42,8 @@ pub struct HudData<'a> {
     /// The last frame's VPLs were sampled during the frame before's gather: their time
     /// overlapped it.
     pub vpls_ahead: bool,
+    /// While the discontinuity buffer fades out of the running mean: its weight in the image.
+    pub filter_weight: Option<f64>,
     /// Render resolution.
     pub render_size: (u32, u32),
     /// Display tone mapping.
@@ -86,7 +88,11 @@ pub fn lines(d: &HudData<'_>) -> Vec<String> {
                 (true, false) => " UNCOMPENSATED",
                 _ => "",
             },
-            if d.settings.filter.is_some() { "ON" } else { "OFF" }
+            match (d.settings.filter, d.filter_weight) {
+                (Some(_), Some(w)) => format!("ON (WEIGHT {w:.2})"),
+                (Some(_), None) => "ON".into(),
+                (None, _) => "OFF".into(),
+            }
         ),
         format!(
             "{:.2} MRAYS/S  ACCEPT {}  {}  FRAMES {}{}  {}",
@@ -174,6 +180,7 @@ mod tests {
                 accumulated: 12,
                 gbuffer_held: fresh,
                 vpls_ahead: !fresh,
+                filter_weight: fresh.then_some(0.25),
                 render_size: (640, 480),
                 tonemap,
                 status: Some(status),
@@ -210,6 +217,7 @@ mod tests {
             accumulated: 7,
             gbuffer_held: true,
             vpls_ahead: true,
+            filter_weight: Some(0.5),
             render_size: (512, 512),
             tonemap: Tonemap::Filmic(1.0),
             status: Some("clamp off"),
@@ -222,6 +230,7 @@ mod tests {
             "SHADOW 30.0 (COMP 6.0)",
             "CLAMP 300 COMPENSATED",
             "FILTER 10.0",
+            "FILTER ON (WEIGHT 0.50)",
             "250 VPLS",
             "3.20 MRAYS/S",
             "42.0%",

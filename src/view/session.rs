@@ -35,6 +35,14 @@
 //! A change before that frame (the camera moves, the settings or the sampler change) drops
 //! them, and the frame samples its own; a Metropolis chain has then advanced one run further,
 //! which changes which VPLs follow but not what they estimate.
+//!
+//! While the camera stands still the discontinuity buffer fades out of the image, as in
+//! `render` ([`frame::Accumulation::filter_fade`]): the session keeps the running mean of the
+//! frames as filtered and of the same frames unfiltered, and shows w·filtered + (1 − w)·
+//! unfiltered with w = K/(K + N) after N frames ([`SessionSettings::filter_fade`]; `auto`:
+//! K = n·m of the interleave tile). A moving camera (N = 1) sees the filtered frame; a still one
+//! converges to the unbiased, unfiltered mean instead of the filter's blur of light that
+//! changes within a window (the lit faces of a slit).
 
 use std::time::{Duration, Instant};
 
@@ -45,7 +53,7 @@ use super::reuse;
 use crate::accel::Accel;
 use crate::frame::{self, FrameSettings, FrameStats};
 use crate::gather::{CameraRays, GBufferUse, JitterSequence};
-use crate::options::VplSamplerArg;
+use crate::options::{FilterFade, VplSamplerArg};
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
 use crate::vpl::{SamplerStats, VplSampler, VplSet};
@@ -140,6 +148,9 @@ pub struct SessionSettings {
     /// While the camera stands still, when to sample the next frame's VPLs during this frame's
     /// gather (module doc).
     pub ahead: Ahead,
+    /// How the discontinuity buffer fades out of the running mean while the camera stands
+    /// still (module doc; `auto`: K = the interleave tile's pixel count, following it).
+    pub filter_fade: FilterFade,
 }
 
 /// When a still camera's next VPLs are sampled during the current frame's gather.
@@ -178,6 +189,7 @@ impl Default for SessionSettings {
             reuse_frames: 4,
             gbuffer_frames: 4,
             ahead: Ahead::Auto,
+            filter_fade: FilterFade::Auto,
         }
     }
 }
@@ -216,7 +228,12 @@ pub struct Session {
     /// once the frame loop hands it back), whose allocations the next frame reuses.
     spare: frame::Spare,
     frame_index: u64,
+    /// The running mean of the frames as filtered.
     mean: Vec<Vec3>,
+    /// While the filter fades: the running mean of the same frames unfiltered, and the image
+    /// shown, the blend of the two (empty otherwise).
+    unfiltered: Vec<Vec3>,
+    shown: Vec<Vec3>,
     accumulated: u32,
     /// The next frame's VPLs, sampled during this frame's gather (still camera).
     ahead: Option<SampledAhead>,
@@ -240,6 +257,8 @@ impl Session {
             sampler,
             settings,
             mean: vec![Vec3::ZERO; camera.pixel_count()],
+            unfiltered: Vec::new(),
+            shown: Vec::new(),
             camera,
             pending: Motion::Jump,
             history: reuse::VplHistory::default(),
@@ -280,9 +299,28 @@ impl Session {
         self.frame_index
     }
 
-    /// The running mean of the frames since the camera last changed (black before the first).
+    /// The image of the frames since the camera last changed (black before the first): their
+    /// running mean, with the discontinuity buffer faded out over them
+    /// ([`SessionSettings::filter_fade`]).
     pub fn mean(&self) -> &[Vec3] {
-        &self.mean
+        if self.fading() { &self.shown } else { &self.mean }
+    }
+
+    /// The fade constant K in force: a fade is set and the filter is on.
+    fn fade_constant(&self) -> Option<u32> {
+        let f = &self.settings.frame;
+        f.filter.and_then(|_| self.settings.filter_fade.constant(f.interleave))
+    }
+
+    /// While the filter fades: the weight of the filtered mean in the image shown, K/(K + N)
+    /// after N frames.
+    pub fn filter_weight(&self) -> Option<f64> {
+        self.fading().then(|| frame::filter_weight(self.fade_constant(), self.accumulated))
+    }
+
+    /// Whether the image shown is a blend of the filtered and the unfiltered means.
+    fn fading(&self) -> bool {
+        self.fade_constant().is_some() && self.accumulated > 0
     }
 
     /// Moves the camera for the next frame; a change restarts accumulation and tells the
@@ -306,6 +344,7 @@ impl Session {
         self.sampler.camera_moved(motion == Motion::Jump);
         if camera.pixel_count() != self.mean.len() {
             self.mean = vec![Vec3::ZERO; camera.pixel_count()];
+            (self.unfiltered, self.shown) = (Vec::new(), Vec::new());
         }
         self.camera = camera;
         self.accumulated = 0;
@@ -422,24 +461,24 @@ impl Session {
         let t = Instant::now();
         self.accumulated += 1;
         let w = 1.0 / self.accumulated as f32;
-        let non_finite = self
-            .mean
-            .par_chunks_mut(4096)
-            .zip(frame.image.par_chunks(4096))
-            .map(|(mean, img)| {
-                let mut bad = 0;
-                for (m, &x) in mean.iter_mut().zip(img) {
-                    let x = if x.is_finite() {
-                        x
-                    } else {
-                        bad += 1;
-                        Vec3::ZERO
-                    };
-                    *m += (x - *m) * w;
+        let non_finite = match self.fade_constant() {
+            None => accumulate(&mut self.mean, &frame.image, w),
+            Some(k) => {
+                let n = self.mean.len();
+                if self.unfiltered.len() != n {
+                    self.unfiltered = vec![Vec3::ZERO; n];
+                    self.shown = vec![Vec3::ZERO; n];
                 }
-                bad
-            })
-            .sum();
+                let blend = frame::filter_weight(Some(k), self.accumulated) as f32;
+                let (light, emitted) = frame.unfiltered();
+                accumulate_faded(
+                    [&mut self.mean, &mut self.unfiltered, &mut self.shown],
+                    [&frame.image, light, emitted],
+                    w,
+                    blend,
+                )
+            }
+        };
         let accumulate_time = t.elapsed();
         // (The image leaves with the outcome; the frame loop hands it back, `Session::recycle`.)
         let (image, stats) = (std::mem::take(&mut frame.image), std::mem::take(&mut frame.stats));
@@ -455,6 +494,57 @@ impl Session {
             vpls_ahead: overlapped,
         }
     }
+}
+
+/// A finite value, or black (counted by the callers).
+fn finite_or_black(x: Vec3) -> Vec3 {
+    if x.is_finite() { x } else { Vec3::ZERO }
+}
+
+/// Adds `image` to the running `mean` with weight `w` (1 / frames); returns how many pixels
+/// were not finite (taken as black).
+fn accumulate(mean: &mut [Vec3], image: &[Vec3], w: f32) -> usize {
+    mean.par_chunks_mut(4096)
+        .zip(image.par_chunks(4096))
+        .map(|(mean, img)| {
+            let mut bad = 0;
+            for (m, &x) in mean.iter_mut().zip(img) {
+                bad += !x.is_finite() as usize;
+                *m += (finite_or_black(x) - *m) * w;
+            }
+            bad
+        })
+        .sum()
+}
+
+/// [`accumulate`] for a fading filter: adds the filtered `image` to `mean` and the unfiltered
+/// frame (`light + emitted`) to `unfiltered`, and writes `shown = blend·mean + (1 − blend)·
+/// unfiltered`, in one pass. Returns how many filtered or unfiltered pixels were not finite.
+fn accumulate_faded(
+    [mean, unfiltered, shown]: [&mut [Vec3]; 3],
+    [image, light, emitted]: [&[Vec3]; 3],
+    w: f32,
+    blend: f32,
+) -> usize {
+    const CHUNK: usize = 4096;
+    mean.par_chunks_mut(CHUNK)
+        .zip(unfiltered.par_chunks_mut(CHUNK))
+        .zip(shown.par_chunks_mut(CHUNK))
+        .zip(image.par_chunks(CHUNK).zip(light.par_chunks(CHUNK)).zip(emitted.par_chunks(CHUNK)))
+        .map(|(((mean, unf), shown), ((img, light), emitted))| {
+            let mut bad = 0;
+            for (((m, u), s), ((&x, &l), &e)) in
+                mean.iter_mut().zip(unf.iter_mut()).zip(shown.iter_mut()).zip(img.iter().zip(light).zip(emitted))
+            {
+                let y = l + e;
+                bad += (!x.is_finite() || !y.is_finite()) as usize;
+                *m += (finite_or_black(x) - *m) * w;
+                *u += (finite_or_black(y) - *u) * w;
+                *s = *u + (*m - *u) * blend;
+            }
+            bad
+        })
+        .sum()
 }
 
 #[cfg(test)]
@@ -535,6 +625,74 @@ mod tests {
             assert_eq!(reused(&mut s), (false, false), "still frame {k} after a move");
         }
         assert_eq!(reused(&mut s), (true, true));
+    }
+
+    /// While the filter fades, the image a still camera shows after N frames is, pixel by
+    /// pixel, w·(the filtered session's mean) + (1 − w)·(the unfiltered session's), w = K/(K+N),
+    /// through held G-buffers and VPLs sampled ahead; it follows an interleave change (auto),
+    /// and a camera move starts it again from the filtered frame.
+    #[test]
+    fn a_fading_session_shows_the_blend_of_the_filtered_and_unfiltered_means() {
+        use crate::accel::Accel;
+        use crate::load::builtin;
+        use crate::scene::{CameraSettings, Scene};
+        let scene = Scene::from_desc(builtin::ajar_door_thick(), &CameraSettings::default()).unwrap();
+        let camera = scene.camera.clone().with_resolution(32, 24);
+        let session = |fade: FilterFade, filter: bool| {
+            let interactive = FrameSettings::interactive();
+            let frame = FrameSettings {
+                vpls: 64,
+                filter: interactive.filter.filter(|_| filter),
+                compensate: true,
+                ..interactive
+            };
+            let settings = SessionSettings {
+                sampler: VplSamplerArg::Mtmh,
+                max_depth: 16,
+                frame,
+                filter_fade: fade,
+                ahead: Ahead::Always,
+                ..Default::default()
+            };
+            Session::new(scene.clone(), Accel::build(&scene.mesh), camera.clone(), settings)
+        };
+        let (mut faded, mut filtered, mut unfiltered) =
+            (session(FilterFade::Frames(5), true), session(FilterFade::Never, true), session(FilterFade::Auto, false));
+        for n in 1..=12u32 {
+            for s in [&mut faded, &mut filtered, &mut unfiltered] {
+                let o = s.step();
+                assert_eq!(o.non_finite, 0);
+                s.recycle(o.image);
+            }
+            assert_eq!(faded.filter_weight(), Some(5.0 / (5.0 + n as f64)));
+            let w = 5.0 / (5.0 + n as f32);
+            assert_eq!((filtered.filter_weight(), unfiltered.filter_weight()), (None, None));
+            let mut differs = 0;
+            for ((x, f), u) in faded.mean().iter().zip(filtered.mean()).zip(unfiltered.mean()) {
+                let want = w * *f + (1.0 - w) * *u;
+                assert!(
+                    (*x - want).abs().max_element() <= 1e-5 * (1.0 + want.max_element()),
+                    "frame {n}: {x} vs {want}"
+                );
+                differs += ((*f - *u).abs().max_element() > 1e-4) as usize;
+            }
+            assert!(differs > 0, "the filter changed nothing: the test tests nothing");
+        }
+        // A move restarts the mean: its first frame is filtered with weight K/(K + 1).
+        let e = camera.position + Vec3::X * 1e-3;
+        faded.set_camera(Camera::look_at(e, e + camera.forward, Vec3::Y, camera.fov_y_radians, 32, 24));
+        assert_eq!(faded.filter_weight(), None);
+        let o = faded.step();
+        faded.recycle(o.image);
+        assert_eq!(faded.filter_weight(), Some(5.0f64 / 6.0));
+        // Auto follows the interleave tile; the filter off, nothing fades.
+        let mut auto = session(FilterFade::Auto, true);
+        auto.set_frame_settings(FrameSettings { interleave: (4, 4), ..auto.settings().frame });
+        let o = auto.step();
+        auto.recycle(o.image);
+        assert_eq!(auto.filter_weight(), Some(16.0f64 / 17.0));
+        auto.set_frame_settings(FrameSettings { filter: None, ..auto.settings().frame });
+        assert_eq!(auto.filter_weight(), None);
     }
 
     #[test]

@@ -310,6 +310,7 @@ impl App {
                 gbuffer_held: self.last_gbuffer_held,
                 vpls_ahead: self.last_vpls_ahead,
                 accumulated: self.fl.session.accumulated(),
+                filter_weight: self.fl.session.filter_weight(),
                 render_size: (rw, rh),
                 tonemap: self.fl.tonemap,
                 status: self.status.as_ref().map(|(s, _)| s.as_str()),
