@@ -482,7 +482,8 @@ mod tests {
 
     /// Frames through a held G-buffer, the discontinuity buffer taking its windows' recorded
     /// neighbours, give the image of a frame traced afresh with the holding frame's seed and
-    /// jitter and the new frame's VPLs, bit for bit; a traced frame in between drops the record.
+    /// jitter and the new frame's VPLs and seed (which draws its interleave rotation), bit for
+    /// bit; a traced frame in between drops the record.
     #[test]
     fn frames_from_a_held_gbuffer_equal_frames_traced_with_its_seed() {
         let scene = Scene::from_desc(builtin::cornell(), &CameraSettings::default()).unwrap();
@@ -491,21 +492,27 @@ mod tests {
         let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::interactive() };
         let vpls = |seed: u64| Sir::new(4).sample(&scene, &accel, &camera, 64, seed).0;
         // Frame `index` of a still camera: its jitter is point `index` of the sequence.
-        let frame = |vpls: VplSet, index: u32, spare: Spare, gbuffer: GBufferUse| {
+        let frame_at = |vpls: VplSet, index: u32, seed: u64, spare: Spare, gbuffer: GBufferUse| {
             let rays = CameraRays { gbuffer, sequence: Some(JitterSequence { seed: 3, index }) };
             let stats = FrameStats::default();
-            gather_frame_reusing(&scene, &accel, &camera, vpls, &settings, index as u64, stats, spare, rays)
+            gather_frame_reusing(&scene, &accel, &camera, vpls, &settings, seed, stats, spare, rays)
         };
-        let traced = |v: VplSet, index: u32| frame(v, index, Spare::default(), GBufferUse::Trace).image;
+        let frame = |vpls: VplSet, index: u32, spare: Spare, gbuffer: GBufferUse| {
+            frame_at(vpls, index, index as u64, spare, gbuffer)
+        };
+        // Traced with jitter point `index` and frame seed `seed`.
+        let traced_at =
+            |v: VplSet, index: u32, seed: u64| frame_at(v, index, seed, Spare::default(), GBufferUse::Trace).image;
+        let traced = |v: VplSet, index: u32| traced_at(v, index, index as u64);
         let (a, b) = (vpls(1), vpls(2));
         let hold = frame(a.clone(), 5, Spare::default(), GBufferUse::TraceAndHold);
         assert!(hold.scratch.masks.is_some(), "the holding frame records its windows");
         assert!(hold.image == traced(a.clone(), 5));
         let first = frame(b.clone(), 6, hold.into_spare(), GBufferUse::Reuse);
         assert_eq!(first.stats.gbuffer_reused, 1);
-        assert!(first.image == traced(b.clone(), 5), "first reuse");
+        assert!(first.image == traced_at(b.clone(), 5, 6), "first reuse");
         let second = frame(a.clone(), 7, first.into_spare(), GBufferUse::Reuse);
-        assert!(second.image == traced(a.clone(), 5), "second reuse");
+        assert!(second.image == traced_at(a.clone(), 5, 7), "second reuse");
         assert!(second.image != traced(a.clone(), 7), "the jitter changes a traced frame");
         let plain = frame(b.clone(), 8, second.into_spare(), GBufferUse::Trace);
         assert!(plain.scratch.masks.is_none(), "a traced frame keeps no record");
