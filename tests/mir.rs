@@ -276,7 +276,20 @@ fn seed_runs(
     (settings, fade): (&FrameSettings, Option<u32>),
     seed0: u64,
 ) -> Estimate {
-    let imgs: Vec<Image> = (0..8u64)
+    seed_runs_n(name, s, a, sampler, (settings, fade), seed0, 8)
+}
+
+/// [`seed_runs`] with `count` renders.
+fn seed_runs_n(
+    name: &str,
+    s: &Scene,
+    a: &Accel,
+    sampler: impl Fn() -> Box<dyn VplSampler>,
+    (settings, fade): (&FrameSettings, Option<u32>),
+    seed0: u64,
+    count: u64,
+) -> Estimate {
+    let imgs: Vec<Image> = (0..count)
         .map(|b| {
             let acc =
                 Accumulation { budget: Budget::Samples(16), seed: seed0 + 1000 * b, aovs: false, filter_fade: fade };
@@ -357,7 +370,12 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
             assert_agree_blocks(&format!("{name}-compensated-{kind:?}-{kernel:?}-vs-pt"), &e, &reference, 8);
         }
         if name == "ajar-door-thick" {
-            let bare = run(VplSamplerArg::Mtmh, KernelArg::Bidir, &FrameSettings { compensate: false, ..settings });
+            // 16 seeds: the check is of the bare clamp's mean, and at 8 its power was marginal
+            // (a 23 % loss gave z 2.9 with one set of streams, above 3 with another).
+            let config = SamplerConfig { kernel: KernelArg::Bidir, ..Default::default() };
+            let bare_settings = FrameSettings { compensate: false, ..settings };
+            let sampler = || VplSamplerArg::Mtmh.build_with(&config);
+            let bare = seed_runs_n(name, &s, &a, sampler, (&bare_settings, None), 31, 16);
             let (m, se, ..) = seed_spread(&bare);
             let z = (r - m) / (se * se + se_r * se_r).sqrt();
             eprintln!("{name}: bare clamp mean/pt {:.3} ± {:.3}, z = {z:.2}", m / r, se / r);
@@ -426,8 +444,16 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
         } else {
             unresolved.push(format!("{name} (4 s.e. = {:.1} %)", 400.0 * sd / r));
         }
-        if matches!(name, "ajar-door-thick" | "light-box-thick") {
-            let (m, se, ..) = run(&FrameSettings { compensate: false, ..options.frame });
+        // The loss without compensation is resolved on the slit scene only. On light-box-thick
+        // the uncompensated mean's standard error at this budget (8–9 % over 16 seeds, a heavy
+        // tail of runs lit by a few strong VPLs) is the size of the loss (13 %, the chains'
+        // clamped target): measured z 3.9, 2.6 (8 seeds) and 1.3 (16 seeds) with three sets of
+        // streams, so the check there had no power and passed by the draw.
+        if name == "ajar-door-thick" {
+            // 16 seeds: at 8 a 24 % loss gave z 7.4; more seeds keep the margin.
+            let sampler = || options.vpl_sampler.build_with(&options.sampler);
+            let bare = FrameSettings { compensate: false, ..options.frame };
+            let (m, se, ..) = seed_spread(&seed_runs_n(name, &s, &a, sampler, (&bare, options.filter_fade), 7, 16));
             let z = (r - m) / (se * se + se_r * se_r).sqrt();
             eprintln!("{name}: uncompensated mean/pt {:.4} ± {:.4}, z = {z:.2}", m / r, se / r);
             assert!(z > 3.0, "{name}: without compensation the default render should be darker (z = {z:.2})");
