@@ -109,8 +109,10 @@ struct ReportArgs {
     #[arg(long, value_enum, default_value_t = Workload::Default)]
     workload: Workload,
     /// The error the converge table gives: `relmse` ((x − r)² / (r² + 0.01), which on dark
-    /// scenes is close to an absolute error) or `nmse` (MSE / m², m the reference's mean
-    /// luminance: it does not change with exposure).
+    /// scenes is close to an absolute error), `nmse` (MSE / m², m the reference's mean
+    /// luminance: it does not change with exposure) or `nmse-excess` (nMSE less the
+    /// reference's own noise, measured from its two independent halves: the error against the
+    /// true image, however noisy the reference).
     #[arg(long, value_enum, default_value_t = mirage::report::Metric::Relmse)]
     metric: mirage::report::Metric,
     /// Write the markdown here (and SVG plots beside it); default: print only.
@@ -452,7 +454,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         })
         .unwrap_or_default();
     md += &format!(
-        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer faded out over the frames (weight n·m / (n·m + frames); -filtered: throughout, -unfiltered: off). {} run(s) per cell.\n\n",
+        "Machine: {machine}, {} threads. Images {}×{}; references: pt, {} spp in two independent halves (target/reference/). VPL methods: {} VPLs/frame, {}×{} interleave, clamp {} compensated, discontinuity buffer faded out over the frames (weight n·m / (n·m + frames); -filtered: throughout, -unfiltered: off). {} run(s) per cell.\n\n",
         rayon::current_num_threads(),
         width,
         height,
@@ -465,6 +467,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
     );
     let mut conv_rows = Vec::new();
     let mut sampler_rows = Vec::new();
+    let mut ref_notes = Vec::new();
     for name in &args.scenes {
         let source = SceneSource::from_arg(Some(name));
         let scene = render::load_scene(&source, &camera)?;
@@ -472,6 +475,12 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         eprintln!("{name}: reference ({} spp, cached)…", args.reference_spp);
         let reference =
             report::reference(&scene, &accel, &source.name(), args.reference_spp, &report::reference_dir())?;
+        let m = reference.image.mean_luminance();
+        ref_notes.push(format!(
+            "{}: mean luminance {m:.4e}, the reference's own nMSE {:.4}",
+            source.name(),
+            reference.noise_mse / (m * m).max(f64::MIN_POSITIVE)
+        ));
         if samplers {
             for &m in &args.vpls {
                 for method in methods.iter().filter(|m| matches!(m, Method::Vpl { .. })) {
@@ -483,7 +492,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
                         method,
                         m,
                         args.frames,
-                        &reference,
+                        &reference.image,
                         &frame_settings,
                     ));
                 }
@@ -520,6 +529,10 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
         };
         md += &format!("{}.\n\n", args.metric.definition());
         md += &report::converge_markdown(&conv_rows, &args.times);
+    }
+    md += "\nReferences (their own noise, Var(r)/m², from the halves' difference):\n\n";
+    for n in &ref_notes {
+        md += &format!("- {n}\n");
     }
     println!("{md}");
     if let Some(out) = &args.output {

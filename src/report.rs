@@ -194,20 +194,61 @@ pub fn run(
     }
 }
 
-/// The cached path-traced reference of `name` at the scene camera's resolution.
-pub fn reference(scene: &Scene, accel: &Accel, name: &str, spp: u32, dir: &Path) -> Result<Image, output::SaveError> {
-    let c = &scene.camera;
-    let path = dir.join(format!("{name}-{}x{}-pt{spp}.exr", c.width, c.height));
-    if let Ok(img) = output::read_exr(&path)
-        && (img.width, img.height) == (c.width, c.height)
-    {
-        return Ok(img);
+/// A path-traced reference made of two independent halves, so that its own noise is known.
+///
+/// With r = (r₁ + r₂)/2 and the halves independent and equally sampled, Var(r) = E[(r₁ − r₂)²]/4
+/// per pixel; and for an image x independent of r, E[(x − r)²] = E[(x − μ)²] + Var(r), μ the
+/// true image. So `mse − noise_mse` estimates x's own error without bias however noisy r is: a
+/// 4096-spp pt reference of the deep shaft has nMSE ≈ 2.4 of its own, which otherwise hides every
+/// method's error below it.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    /// The mean of the two halves.
+    pub image: Image,
+    /// Mean over pixels and channels of (r₁ − r₂)² / 4: the reference's own variance.
+    pub noise_mse: f64,
+}
+
+impl Reference {
+    /// The reference of two independent halves.
+    pub fn from_halves(a: &Image, b: &Image) -> Reference {
+        assert_eq!((a.width, a.height), (b.width, b.height), "reference halves differ in size");
+        let data = a.data.iter().zip(&b.data).map(|(p, q)| (*p + *q) * 0.5).collect();
+        let image = Image { width: a.width, height: a.height, data };
+        // (r₁ − r₂)² / 4 is the squared error of r₁ against r: the MSE of one half against the mean.
+        let noise_mse = a.errors(&image).mse;
+        Reference { image, noise_mse }
     }
-    std::fs::create_dir_all(dir).map_err(|e| output::SaveError { path: dir.to_path_buf(), message: e.to_string() })?;
-    let settings = OfflineSettings { budget: Budget::Samples(spp), seed: 0x5eed, ..OfflineSettings::preview() };
-    let img = offline::render_pt(scene, accel, &settings, &ProgressBar::hidden()).film.image();
-    output::write_exr(&path, &img, Default::default())?;
-    Ok(img)
+}
+
+/// The cached path-traced reference of `name` at the scene camera's resolution: two halves of
+/// `spp / 2` samples each (seeds 0x5eed and 0x5eee), cached separately.
+pub fn reference(
+    scene: &Scene,
+    accel: &Accel,
+    name: &str,
+    spp: u32,
+    dir: &Path,
+) -> Result<Reference, output::SaveError> {
+    let c = &scene.camera;
+    let half_spp = (spp / 2).max(1);
+    let mut halves = Vec::with_capacity(2);
+    for (k, seed) in [(1, 0x5eed), (2, 0x5eee)] {
+        let path = dir.join(format!("{name}-{}x{}-pt{spp}-half{k}.exr", c.width, c.height));
+        if let Ok(img) = output::read_exr(&path)
+            && (img.width, img.height) == (c.width, c.height)
+        {
+            halves.push(img);
+            continue;
+        }
+        std::fs::create_dir_all(dir)
+            .map_err(|e| output::SaveError { path: dir.to_path_buf(), message: e.to_string() })?;
+        let settings = OfflineSettings { budget: Budget::Samples(half_spp), seed, ..OfflineSettings::preview() };
+        let img = offline::render_pt(scene, accel, &settings, &ProgressBar::hidden()).film.image();
+        output::write_exr(&path, &img, Default::default())?;
+        halves.push(img);
+    }
+    Ok(Reference::from_halves(&halves[0], &halves[1]))
 }
 
 /// Default reference cache directory.
@@ -224,14 +265,24 @@ pub enum Metric {
     /// MSE / m², m the reference's mean luminance: independent of exposure, so dark scenes are
     /// compared too, and a noisy reference adds the same constant to every method.
     Nmse,
+    /// (MSE − the reference's own variance) / m²: the nMSE the image has against the true image,
+    /// estimated without bias from a reference of any noise ([`Reference::noise_mse`]). It can
+    /// come out below zero when the image is closer to the truth than the reference's noise
+    /// resolves.
+    NmseExcess,
 }
 
 impl Metric {
-    /// This metric's value of `e`.
-    pub fn of(self, e: &crate::film::ImageErrors) -> f64 {
+    /// This metric's value for the errors `e` of an image against `reference`.
+    pub fn of(self, e: &crate::film::ImageErrors, reference: &Reference) -> f64 {
         match self {
             Metric::Relmse => e.rel_mse,
             Metric::Nmse => e.nmse,
+            Metric::NmseExcess => {
+                let m = reference.image.mean_luminance();
+                let m2 = if m > 0.0 { m * m } else { 1.0 };
+                (e.mse - reference.noise_mse) / m2
+            }
         }
     }
 
@@ -240,6 +291,7 @@ impl Metric {
         match self {
             Metric::Relmse => "relMSE",
             Metric::Nmse => "nMSE",
+            Metric::NmseExcess => "excess nMSE",
         }
     }
 
@@ -249,6 +301,9 @@ impl Metric {
             Metric::Relmse => "relMSE = mean over pixels and channels of (x − r)² / (r² + 0.01)",
             Metric::Nmse => {
                 "nMSE = mean over pixels and channels of (x − r)², divided by m², m the reference's mean luminance (the MSE of both images scaled to mean 1: it does not depend on exposure; the reference's own noise adds the same Var(r)/m² to every method)"
+            }
+            Metric::NmseExcess => {
+                "excess nMSE = (mean over pixels and channels of (x − r)² − V) / m², m the reference's mean luminance and V the reference's own variance, measured from its two independent halves r₁, r₂ as the mean of (r₁ − r₂)²/4: an unbiased estimate of the image's nMSE against the true image however noisy the reference (E[(x − r)²] = E[(x − μ)²] + Var(r)); it can be negative when the error is below what the reference resolves"
             }
         }
     }
@@ -283,7 +338,7 @@ pub fn converge(
     methods: &[Method],
     times: &[f64],
     seeds: u32,
-    reference: &Image,
+    reference: &Reference,
     frame_settings: &FrameSettings,
     metric: Metric,
     progress: &dyn Fn(&str),
@@ -295,7 +350,7 @@ pub fn converge(
             let mut runs: Vec<(f64, f64, u32)> = (1..=seeds.max(1) as u64)
                 .map(|seed| {
                     let r = run(scene, accel, m, Budget::Time(Duration::from_secs_f64(t)), seed, frame_settings);
-                    (metric.of(&r.image.errors(reference)), r.elapsed.as_secs_f64(), r.passes)
+                    (metric.of(&r.image.errors(&reference.image), reference), r.elapsed.as_secs_f64(), r.passes)
                 })
                 .collect();
             runs.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -507,6 +562,40 @@ mod tests {
         let md = converge_markdown(&rows, &[1.0]);
         assert!(md.contains("| s | mtmh | 0.0200 [0.0100–0.5000] (7) |"), "{md}");
         assert!(md.contains("| s | sir | 0.0300 (7) |"), "{md}");
+    }
+
+    /// The excess nMSE removes the reference's own noise: an image whose true error is known
+    /// (uniform noise of variance σ² = 1/12 around μ = 1) measured against references of very
+    /// different noise gives σ²/μ² within the estimate's sampling spread, while plain nMSE grows
+    /// with the reference's noise. A metric that ignored the halves' difference fails this.
+    #[test]
+    fn excess_nmse_is_the_error_against_the_true_image_whatever_the_reference_noise() {
+        use crate::sampling::Pcg32;
+        use glam::Vec3;
+        let (w, h) = (256u32, 256u32);
+        let noisy = |rng: &mut Pcg32, amp: f32| Image {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .map(|_| Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5) * amp + Vec3::ONE)
+                .collect(),
+        };
+        let mut rng = Pcg32::new(7);
+        let x = noisy(&mut rng, 1.0);
+        let truth = 1.0 / 12.0;
+        // 3·w·h samples of (x − μ)² (variance 1/180 each) and of the halves' noise.
+        for amp in [0.0f32, 1.0, 4.0] {
+            let r = Reference::from_halves(&noisy(&mut rng, amp), &noisy(&mut rng, amp));
+            let e = x.errors(&r.image);
+            let excess = Metric::NmseExcess.of(&e, &r);
+            let ref_var = (amp * amp / 12.0 / 2.0) as f64;
+            let n = 3.0 * (w * h) as f64;
+            // Spread: (x − r)² and the halves' (r₁ − r₂)²/4 each have a variance ≈ 2 (σ² + Var r)² per sample.
+            let sd = (2.0 * (truth + ref_var).powi(2) * 2.0 / n).sqrt();
+            assert!((excess - truth).abs() < 5.0 * sd, "amp {amp}: excess {excess} vs {truth} (sd {sd})");
+            assert!((r.noise_mse - ref_var).abs() < 5.0 * sd + 1e-9, "amp {amp}: noise {} vs {ref_var}", r.noise_mse);
+            assert!((Metric::Nmse.of(&e, &r) - (truth + ref_var)).abs() < 5.0 * sd);
+        }
     }
 
     #[test]
