@@ -46,8 +46,9 @@ pub struct FrameSettings {
     /// Compensate the clamp: a short residual path per pixel adds back, in expectation, what
     /// the clamp removed ([`crate::gather::compensate`]).
     pub compensate: bool,
-    /// Gather VPLs that light very few pixels of their interleave subset at every pixel
-    /// ([`Interleave::for_image`]): without it such VPLs show as bright 8×8 squares.
+    /// Gather VPLs that light very few pixels of their interleave subset at every pixel of
+    /// their screen region ([`Interleave::for_image`]): without it such VPLs show as bright
+    /// 8×8 squares.
     pub spread_small_vpls: bool,
     /// Keep each pixel's compensation term apart as well ([`Frame::compensation`]; for the
     /// EXR's `compensation` layer).
@@ -260,7 +261,7 @@ pub fn gather_frame_reusing(
 ) -> Frame {
     let (n, m) = settings.interleave;
     let inter = if settings.spread_small_vpls {
-        Interleave::for_image(&vpls, n, m, camera.pixel_count())
+        Interleave::for_image(&vpls, n, m, (camera.width, camera.height))
     } else {
         Interleave::new(&vpls, n, m)
     }

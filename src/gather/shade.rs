@@ -363,14 +363,8 @@ fn chunkable(vpls: &VplSet) -> bool {
 }
 
 /// The VPLs of every interleave subset, eight to a chunk, in subset order.
-/// The last entry holds the VPLs spread over every pixel ([`Interleave::everywhere`]).
 fn chunk_subsets(vpls: &VplSet, inter: &Interleave) -> Vec<Vec<VplChunk>> {
-    inter
-        .subsets
-        .iter()
-        .chain(std::iter::once(&inter.everywhere))
-        .map(|subset| subset.chunks(F8::LANES).map(|ids| VplChunk::new(vpls, ids)).collect())
-        .collect()
+    inter.subsets.iter().map(|subset| subset.chunks(F8::LANES).map(|ids| VplChunk::new(vpls, ids)).collect()).collect()
 }
 
 impl VplChunk {
@@ -615,7 +609,7 @@ impl<'a> Gatherer<'a> {
     /// Whether [`Gatherer::row`] needs every receiver (the packet groupings, or VPLs outside the
     /// eight-VPL kernel), not only the non-Lambertian ones.
     pub(crate) fn keeps_all_receivers(&self) -> bool {
-        !self.inter.everywhere.is_empty()
+        !self.inter.regional.is_empty()
             || !matches!((self.tracing, &self.chunks), (Tracing::Single | Tracing::PrimaryPackets, Some(_)))
     }
 
@@ -646,8 +640,6 @@ impl<'a> Gatherer<'a> {
             let r = receivers[x as usize].as_ref()?;
             self.candidate(row_points[x as usize].as_ref()?, r, x, i)
         };
-        // Pixels whose spread VPLs the Lambertian kernel already gathered.
-        let mut covered = vec![false; w as usize];
         let mut acc = RowSums {
             sum: vec![Vec3::ZERO; w as usize],
             removed: vec![Vec3::ZERO; w as usize],
@@ -681,17 +673,10 @@ impl<'a> Gatherer<'a> {
                     if let Some(chunks) = &self.chunks
                         && let Some(l) = &pt.lambert
                     {
-                        covered[x as usize] = true;
                         if l.f == Vec3::ZERO {
                             continue;
                         }
-                        // The subset's chunks, then those spread over every pixel (the last
-                        // entry), divided by the subset's scale that the row's sums get.
-                        let k = subsets.of(x);
-                        let spread = 1.0 / inter.scales[k];
-                        let spread = if spread.is_finite() { spread } else { 0.0 };
-                        let lists = [(&chunks[k][..], 1.0), (&chunks[chunks.len() - 1][..], spread)];
-                        for (ch, weight) in lists.iter().flat_map(|(l, w)| l.iter().map(move |c| (c, *w))) {
+                        for ch in &chunks[subsets.of(x)] {
                             let lc = l.unshadowed8(ch, pt.p, g_max, min_d2);
                             if lc.lanes == 0 {
                                 continue;
@@ -706,13 +691,9 @@ impl<'a> Gatherer<'a> {
                                 let target = vpls.position[i as usize];
                                 let o = pt.origin_towards(target);
                                 let (c, full) = lc.lane(j);
-                                let (c, full) = (c * weight, full * weight);
                                 let add = |(x, c, full)| acc.add_light(x, c, full);
                                 batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                             }
-                        }
-                        if spread == 0.0 {
-                            covered[x as usize] = false;
                         }
                         continue;
                     }
@@ -766,22 +747,40 @@ impl<'a> Gatherer<'a> {
             energy.removed += (luminance(removed) * s) as f64;
             *o = sum * s;
         }
-        // VPLs spread over every pixel (see `Interleave::everywhere`): unscaled, single rays.
-        if !inter.everywhere.is_empty() {
-            for (x, o) in out.iter_mut().enumerate() {
-                let Some(r) = receivers[x].as_ref().filter(|_| !covered[x]) else { continue };
-                for &i in &inter.everywhere {
-                    let i = i as usize;
+        // Regional VPLs (see `Interleave::regional`): weight 1 at the pixels of their region,
+        // their home subset's scale at that subset's pixels outside it; single rays.
+        if !inter.regional.is_empty() {
+            // The row's pixel offsets in the tile and the subset each gathers.
+            let offsets: Vec<(u32, usize)> = (0..inter.n.min(w)).map(|i| (i, subsets.of(i))).collect();
+            for reg in &inter.regional {
+                let i = reg.vpl as usize;
+                let mut gather = |x: u32, weight: f32| {
+                    let Some(r) = receivers[x as usize].as_ref() else { return };
                     if min_d2 > 0.0 && (vpls.position[i] - r.sp.p).length_squared() < min_d2 {
-                        continue;
+                        return;
                     }
-                    let Some((c, full)) = unshadowed(vpls, i, r, g_max) else { continue };
+                    let Some((c, full)) = unshadowed(vpls, i, r, g_max) else { return };
                     let (origin, d) = shadow_segment(scene, vpls, i, r);
                     st.shadow += 1;
                     if !accel.occluded(origin, d, SHADOW_T_MAX) {
-                        energy.kept += luminance(c) as f64;
-                        energy.removed += luminance(full - c) as f64;
-                        *o += c;
+                        energy.kept += (luminance(c) * weight) as f64;
+                        energy.removed += (luminance(full - c) * weight) as f64;
+                        out[x as usize] += c * weight;
+                    }
+                };
+                let [x0, y0, x1, y1] = reg.rect;
+                let row_in = y >= y0 && y <= y1;
+                if row_in {
+                    for x in x0..=x1.min(w - 1) {
+                        gather(x, 1.0);
+                    }
+                }
+                let scale = inter.scales[reg.home as usize];
+                for &(ox, _) in offsets.iter().filter(|(_, k)| *k == reg.home as usize) {
+                    for x in (ox..w).step_by(inter.n as usize) {
+                        if !(row_in && x >= x0 && x <= x1) {
+                            gather(x, scale);
+                        }
                     }
                 }
             }
@@ -1139,5 +1138,47 @@ mod tests {
         let p = 0.5 * (pa + pb);
         let z = (pa - pb) / (2.0 * p * (1.0 - p) / draws as f64).sqrt();
         assert!(rejected.1 > 50 && z.abs() < 4.5, "rejected {rejected:?} of {draws} each (z {z:.1})");
+    }
+
+    /// Regional VPLs ([`Interleave::regional`]) keep every pixel's expectation: averaged over
+    /// every rotation of the split (the frame's random rotation is uniform over them), a gather
+    /// with regional VPLs equals the gather of every VPL at every pixel (1×1), pixel by pixel,
+    /// for regions that cover the image, part of it, a few pixels, or nothing. A gather that
+    /// weighted a region's pixels by the subset scale, or skipped the home subset outside the
+    /// region, would be off by the VPL's light there.
+    #[test]
+    fn regional_vpls_average_over_rotations_to_the_full_gather() {
+        let (w, h) = (48u32, 40u32);
+        let (scene, accel, camera, gbuf) = traced(builtin::cornell(), (w, h), 7);
+        let (mut vpls, _) = Sir::new(4).sample(&scene, &accel, &camera, 256, 11);
+        assert!(vpls.len() >= 128);
+        // 128 groups: two per subset of the 8×8 split, so every scale is exactly 64.
+        vpls.group = (0..vpls.len() as u32).map(|i| i % 128).collect();
+        vpls.groups = 128;
+        vpls.footprint = vec![0.0; vpls.len()];
+        vpls.footprint_rect = (0..vpls.len())
+            .map(|i| match i % 4 {
+                0 => [0, 0, w / 2, h - 1],
+                1 => [w / 3, h / 4, w / 3 + 5, h / 4 + 6],
+                2 => [u32::MAX, u32::MAX, 0, 0],
+                _ => [0, 0, w - 1, h - 1],
+            })
+            .collect();
+        let inter = Interleave::for_image(&vpls, 8, 8, (w, h));
+        assert_eq!(inter.regional.len(), vpls.group.iter().filter(|&&g| g < 16).count(), "an eighth of the groups");
+        let mut st = RayStats::default();
+        let g_max = 0.5;
+        let (full, _) =
+            gather(&scene, &accel, &gbuf, &vpls, &Interleave::new(&vpls, 1, 1), g_max, 0.0, Tracing::Single, &mut st);
+        let mut mean = vec![Vec3::ZERO; full.len()];
+        for k in 0..64 {
+            let (img, _) =
+                gather(&scene, &accel, &gbuf, &vpls, &inter.clone().rotated(k), g_max, 0.0, Tracing::Single, &mut st);
+            mean.iter_mut().zip(&img).for_each(|(m, p)| *m += *p / 64.0);
+        }
+        let scale = full.iter().map(|p| p.max_element()).sum::<f32>() / full.len() as f32;
+        for (i, (a, b)) in mean.iter().zip(&full).enumerate() {
+            assert!((*a - *b).abs().max_element() <= 1e-4 * (b.max_element() + scale), "pixel {i}: {a} vs {b}");
+        }
     }
 }

@@ -448,30 +448,51 @@ fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
             (gy + s.next_1d()) / side as f32 * cam.height as f32,
         );
         let c = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), &mut st);
-        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver))), st)
+        let pixel = [(raster.x as u32).min(cam.width - 1), (raster.y as u32).min(cam.height - 1)];
+        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver), pixel)), st)
     };
-    let traced: Vec<(Option<(Receiver, Prepared)>, RayStats)> = if parallel {
+    /// A probe's receiver, prepared, and its pixel, when its ray found a surface.
+    type Probe = Option<(Receiver, Prepared, [u32; 2])>;
+    let traced: Vec<(Probe, RayStats)> = if parallel {
         (0..side * side).into_par_iter().map(probe).collect()
     } else {
         (0..side * side).map(probe).collect()
     };
-    let mut batch =
-        ProbeBatch { receivers: Vec::with_capacity(traced.len()), rays: side * side, stats: RayStats::default() };
+    let cell = [cam.width.div_ceil(side as u32), cam.height.div_ceil(side as u32)];
+    let mut batch = ProbeBatch {
+        receivers: Vec::with_capacity(traced.len()),
+        pixels: Vec::with_capacity(traced.len()),
+        cell,
+        rays: side * side,
+        stats: RayStats::default(),
+    };
     for (r, st) in traced {
         batch.stats += st;
-        batch.receivers.extend(r);
+        if let Some((r, p, pixel)) = r {
+            batch.receivers.push((r, p));
+            batch.pixels.push(pixel);
+        }
     }
     batch
 }
 
 /// A VPL location's probe sums: estimates of Σ y and Σ y² over its probes (y the probe's
-/// visible response), the probes traced, and an estimate of the probes that see it.
-#[derive(Clone, Copy, Debug, Default)]
+/// visible response), the probes traced, an estimate of the probes that see it, and the pixel
+/// rectangle of the probes whose shadow ray found it visible (widened by a probe cell each
+/// side; `[u32::MAX, u32::MAX, 0, 0]` while none did).
+#[derive(Clone, Copy, Debug)]
 struct ProbeSums {
     sum: f64,
     sum2: f64,
     rays_used: usize,
     hits: f64,
+    rect: [u32; 4],
+}
+
+impl Default for ProbeSums {
+    fn default() -> Self {
+        ProbeSums { sum: 0.0, sum2: 0.0, rays_used: 0, hits: 0.0, rect: [u32::MAX, u32::MAX, 0, 0] }
+    }
 }
 
 /// One shadow ray of the normalisation, from a probe to a VPL, and what it adds to the VPL's
@@ -480,6 +501,7 @@ struct ProbeSums {
 #[derive(Clone, Copy, Debug, Default)]
 struct VisibilitySample {
     lane: u32,
+    probe: u32,
     sum: f64,
     sum2: f64,
     hits: f64,
@@ -503,7 +525,7 @@ fn visibility_samples(lit: &[(u32, f32)], n: usize, xi: f64, mut trace: impl FnM
     if lit.len() <= n {
         for &(i, u) in lit {
             let u = u as f64;
-            trace(i, VisibilitySample { lane: 0, sum: u, sum2: u * u, hits: 1.0 });
+            trace(i, VisibilitySample { lane: 0, probe: i, sum: u, sum2: u * u, hits: 1.0 });
         }
         return;
     }
@@ -523,16 +545,23 @@ fn visibility_samples(lit: &[(u32, f32)], n: usize, xi: f64, mut trace: impl FnM
         }
         if q > 0 {
             let (q, u) = (q as f64, u as f64);
-            trace(i, VisibilitySample { lane: 0, sum: q * step, sum2: q * step * u, hits: q * step / u });
+            trace(i, VisibilitySample { lane: 0, probe: i, sum: q * step, sum2: q * step * u, hits: q * step / u });
         }
     }
 }
 
 impl ProbeSums {
-    fn add(&mut self, v: VisibilitySample) {
+    /// Adds an unblocked visibility sample; its probe lies at `pixel`, in probe cells of
+    /// `cell` pixels.
+    fn add(&mut self, v: VisibilitySample, pixel: [u32; 2], cell: [u32; 2]) {
         self.sum += v.sum;
         self.sum2 += v.sum2;
         self.hits += v.hits;
+        let r = &mut self.rect;
+        r[0] = r[0].min(pixel[0].saturating_sub(cell[0]));
+        r[1] = r[1].min(pixel[1].saturating_sub(cell[1]));
+        r[2] = r[2].max(pixel[0] + cell[0]);
+        r[3] = r[3].max(pixel[1] + cell[1]);
     }
 
     /// The VPL `vpl` (location `group`, `k` chain states, power `p_i`) with its radiance scaled
@@ -560,6 +589,10 @@ impl ProbeSums {
 struct ProbeBatch {
     /// The probes that found a receiver, prepared as the gather prepares its pixels.
     receivers: Vec<(Receiver, Prepared)>,
+    /// The pixel of each of them.
+    pixels: Vec<[u32; 2]>,
+    /// The probes' stratification cell, in pixels.
+    cell: [u32; 2],
     /// Camera rays traced (the denominator of the batch's mean).
     rays: usize,
     /// Rays traced building the batch.
@@ -710,7 +743,7 @@ impl<K: MutationKernel> Mir<K> {
                     if active == 0 {
                         break;
                     }
-                    let ProbeBatch { receivers, rays: count, .. } = batch(b);
+                    let ProbeBatch { receivers, pixels, cell, rays: count, .. } = batch(b);
                     lit.iter_mut().for_each(Vec::clear);
                     for (i, (r, pt)) in receivers.iter().enumerate() {
                         lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c| {
@@ -720,7 +753,7 @@ impl<K: MutationKernel> Mir<K> {
                             }
                         });
                     }
-                    let mut add = |v: VisibilitySample| sums[v.lane as usize].add(v);
+                    let mut add = |v: VisibilitySample| sums[v.lane as usize].add(v, pixels[v.probe as usize], *cell);
                     for j in (0..chunk.len()).filter(|j| active >> j & 1 != 0) {
                         let xi = Pcg32::from_words(&[seed, TAG_VISIBILITY, (8 * c + j) as u64, b as u64]).next_f64();
                         let target = set.position[j];
@@ -752,11 +785,11 @@ impl<K: MutationKernel> Mir<K> {
             })
             .collect();
         let mut scaled: Vec<Option<Vpl>> = Vec::with_capacity(locations.len());
-        let mut footprints: Vec<f32> = Vec::with_capacity(locations.len());
+        let mut footprints: Vec<(f32, [u32; 4])> = Vec::with_capacity(locations.len());
         for (sums, st) in &measured {
             rays += *st;
             for p in sums {
-                footprints.push((p.hits / p.rays_used.max(1) as f64) as f32);
+                footprints.push(((p.hits / p.rays_used.max(1) as f64) as f32, p.rect));
                 let (i, (s, k)) = (scaled.len(), &locations[scaled.len()]);
                 scaled.push(p.scaled(s.vpl, i as u32, *k, *k as f64 * pc / n_states as f64, npix));
             }
@@ -777,10 +810,11 @@ impl<K: MutationKernel> Mir<K> {
             report.dropped_share = lost as f64 / n_states.max(1) as f64;
         }
         let mut set = VplSet::default();
-        for ((v, (s, k)), f) in scaled.into_iter().zip(&locations).zip(footprints) {
+        for ((v, (s, k)), (f, rect)) in scaled.into_iter().zip(&locations).zip(footprints) {
             if let Some(v) = v {
                 set.push(v);
                 set.footprint.push(f);
+                set.footprint_rect.push(rect);
                 report.power_by_light[s.source_light() as usize] += *k as f64 * pc / n_states as f64;
             }
         }

@@ -70,8 +70,13 @@ pub struct VplSet {
     pub groups: u32,
     /// Share of the image's camera rays that see each VPL (MIR's probe estimate), or empty
     /// when unknown. The gather spreads a VPL that would light very few pixels of its
-    /// interleave subset over every pixel instead ([`crate::gather::Interleave::new`]).
+    /// interleave subset over every pixel of its screen region instead
+    /// ([`crate::gather::Interleave::for_image`]).
     pub footprint: Vec<f32>,
+    /// Each VPL's screen region, `[x0, y0, x1, y1]` (pixels, inclusive): where the probes that
+    /// saw it lie, widened by the probes' spacing (MIR), or empty when unknown (the whole
+    /// image). Only where the gather spends rays: a VPL is gathered outside it too.
+    pub footprint_rect: Vec<[u32; 4]>,
 }
 
 /// One VPL for [`VplSet::push`].
