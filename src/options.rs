@@ -186,6 +186,10 @@ pub struct SamplerConfig {
     pub light_cdf: bool,
     /// MIR: independent chains run side by side.
     pub chains: usize,
+    /// MIR: independent samples estimating the camera power P_c each frame (N).
+    pub pc_samples: usize,
+    /// MIR: camera probes per batch estimating each VPL's camera response P′ (K).
+    pub probes: usize,
 }
 
 impl Default for SamplerConfig {
@@ -196,6 +200,8 @@ impl Default for SamplerConfig {
             candidates: 10,
             light_cdf: false,
             chains: crate::vpl::metropolis::MirSettings::mtmh().chains,
+            pc_samples: crate::vpl::metropolis::MirSettings::mtmh().pc_samples,
+            probes: crate::vpl::metropolis::MirSettings::mtmh().probes,
         }
     }
 }
@@ -231,7 +237,14 @@ impl VplSamplerArg {
     pub fn build_with(self, c: &SamplerConfig) -> Box<dyn crate::vpl::VplSampler> {
         use crate::vpl::metropolis::{Chain, Mir, MirSettings};
         use crate::vpl::mutation::{Bidirectional, PrimarySample};
-        let mir = |chain| MirSettings { chain, light_cdf: c.light_cdf, chains: c.chains.max(1), ..MirSettings::mtmh() };
+        let mir = |chain| MirSettings {
+            chain,
+            light_cdf: c.light_cdf,
+            chains: c.chains.max(1),
+            pc_samples: c.pc_samples.max(1),
+            probes: c.probes.max(1),
+            ..MirSettings::mtmh()
+        };
         let chain = if self == VplSamplerArg::Mh { Chain::Mh } else { Chain::Mtmh(c.candidates.max(1)) };
         match (self, c.kernel) {
             (VplSamplerArg::Sir, _) => Box::new(crate::vpl::sir::Sir::new(c.max_depth)),
@@ -399,6 +412,15 @@ pub struct RenderArgs {
     /// locations (the count, not the thread count, fixes the image).
     #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().chains)]
     pub chains: usize,
+    /// mir: independent bidirectional samples estimating the camera power P_c each frame (papers/002
+    /// §5.1): its error scales the whole frame, so behind slits and holes, where few samples
+    /// carry light, more of them lower the image's error.
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().pc_samples)]
+    pub pc_samples: usize,
+    /// mir: camera probes per batch estimating each VPL's camera response P′ (papers/002 §5.4);
+    /// a VPL seen by few probes takes further batches.
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().probes)]
+    pub probes: usize,
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
@@ -531,6 +553,12 @@ impl RenderArgs {
         if self.chains == 0 || self.chains > 64 {
             return Err(OptionsError(format!("--chains {} is outside 1…64", self.chains)));
         }
+        if self.pc_samples == 0 || self.pc_samples > 1 << 26 {
+            return Err(OptionsError(format!("--pc-samples {} is outside 1…{}", self.pc_samples, 1 << 26)));
+        }
+        if self.probes == 0 || self.probes > 1 << 22 {
+            return Err(OptionsError(format!("--probes {} is outside 1…{}", self.probes, 1 << 22)));
+        }
         if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
             return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
         }
@@ -569,6 +597,8 @@ impl RenderArgs {
                 candidates: self.candidates,
                 light_cdf: self.light_cdf,
                 chains: self.chains,
+                pc_samples: self.pc_samples,
+                probes: self.probes,
             },
             frame: crate::frame::FrameSettings {
                 max_specular: 8,
