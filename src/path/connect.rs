@@ -206,7 +206,13 @@ pub fn mis_weight(
             light[i].pdf_rev
         }
     };
-    let light_delta = |i: usize| i != s - 1 && light_at(i).delta;
+    // A light sub-path's first vertex is never a scattering event: a point, spot or delta-sun
+    // light there rules out only the strategy that would hit it (s = 0, `is_delta_light`
+    // below), not next-event estimation (s = 1) as its `delta` flag would (pbrt-v3 §16.3.4
+    // keeps the flag off on light vertices). Counting that flag dropped p₁ from every longer
+    // strategy's weight: the weights then summed to more than one and bdpt under a delta sun
+    // came out at twice the analytic value (tests/sky.rs).
+    let light_delta = |i: usize| i != s - 1 && i > 0 && light_at(i).delta;
 
     let mut sum = 0.0f32;
     // Strategies that move the connection towards the camera (fewer camera vertices).
