@@ -168,7 +168,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     }
     let source = SceneSource::from_arg(args.scene.as_deref());
     let t0 = Instant::now();
-    let mut scene = render::load_scene(&source, &args.camera.settings())?;
+    let mut scene = render::load_scene_lit(&source, &args.camera.settings(), &args.lights)?;
     for w in &scene.warnings {
         eprintln!("mirage: warning: {w}");
     }
@@ -340,11 +340,13 @@ fn cmd_info(scene: Option<&str>) -> Result<()> {
     );
     let total = scene.lights.total_power();
     let area = scene.lights.list.iter().filter(|l| matches!(l, Light::Area { .. })).count();
+    let infinite = scene.lights.list.iter().filter(|l| l.at_infinity()).count();
     println!(
-        "emitters   {} ({} emissive triangles, {} punctual), total power [{:.4}, {:.4}, {:.4}] W",
+        "emitters   {} ({} emissive triangles, {} punctual, {} at infinity), total power [{:.4}, {:.4}, {:.4}] W",
         scene.lights.list.len(),
         area,
-        scene.lights.list.len() - area,
+        scene.lights.list.len() - area - infinite,
+        infinite,
         total.x,
         total.y,
         total.z
@@ -359,6 +361,20 @@ fn cmd_info(scene: Option<&str>) -> Result<()> {
             }
             Light::Spot { position, .. } => {
                 format!("spot light at [{:.3}, {:.3}, {:.3}]", position.x, position.y, position.z)
+            }
+            Light::Sun(sun) => {
+                let (wi, e) = (sun.wi(), sun.irradiance);
+                let diameter = 2.0 * sun.half_angle.to_degrees();
+                format!(
+                    "sun towards [{:.3}, {:.3}, {:.3}], illuminance [{:.4}, {:.4}, {:.4}] W/m², diameter {diameter:.2}° (power through the scene's disk)",
+                    wi.x, wi.y, wi.z, e.x, e.y, e.z
+                )
+            }
+            Light::Sky(mirage::scene::sky::Environment::Constant(l)) => {
+                format!("constant sky, radiance [{:.4}, {:.4}, {:.4}] (power through the scene's disk)", l.x, l.y, l.z)
+            }
+            Light::Sky(mirage::scene::sky::Environment::Map(m)) => {
+                format!("environment map {}×{} (power through the scene's disk)", m.width, m.height)
             }
         };
         match by_material.iter_mut().find(|(n, _, _)| *n == name) {

@@ -354,6 +354,55 @@ pub struct CameraArgs {
     pub focus_at: Option<Vec2>,
 }
 
+/// Lights added from the command line (`render` and `view`): the sun and the sky.
+#[derive(Args, Clone, Debug, Default)]
+pub struct LightArgs {
+    /// Add a sun "AZIMUTH,ELEVATION,ILLUMINANCE": azimuth in degrees from +z towards +x,
+    /// elevation in degrees above the horizon (+y is up), illuminance in W/m² (lux) on a surface
+    /// facing it, white.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "AZ,EL,E")]
+    pub sun: Option<Vec3>,
+    /// Angular diameter of the --sun in degrees (0: parallel light, no ray can hit it).
+    #[arg(long, default_value_t = 0.53, value_name = "DEG")]
+    pub sun_diameter: f32,
+    /// Add a constant sky of radiance "R,G,B" (W/(m²·sr)) from every direction.
+    #[arg(long, value_parser = parse_vec3, value_name = "R,G,B")]
+    pub sky: Option<Vec3>,
+    /// Add an environment light from an equirectangular map (.exr or .hdr; +y up, the top row
+    /// the zenith), importance-sampled by its luminance.
+    #[arg(long, value_name = "FILE")]
+    pub environment: Option<PathBuf>,
+    /// Rotate the --environment about +y by this many degrees.
+    #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_hyphen_values = true)]
+    pub environment_rotate: f32,
+}
+
+impl LightArgs {
+    /// Adds the requested lights to `desc` (reading the environment file); warnings about the
+    /// file go into the scene's warnings.
+    pub fn apply(&self, desc: &mut crate::load::SceneDesc) -> Result<(), crate::load::LoadError> {
+        use crate::load::{EnvironmentDesc, PunctualDesc};
+        if let Some(Vec3 { x: az, y: el, z: e }) = self.sun {
+            let (az, el) = (az.to_radians(), el.to_radians());
+            let towards = Vec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+            desc.lights.push(PunctualDesc::Directional {
+                direction: -towards,
+                illuminance: Vec3::splat(e),
+                angular_diameter: self.sun_diameter.to_radians(),
+            });
+        }
+        if let Some(l) = self.sky {
+            desc.lights.push(PunctualDesc::Environment(EnvironmentDesc::Constant(l)));
+        }
+        if let Some(path) = &self.environment {
+            let (env, warning) = crate::load::load_environment(path, self.environment_rotate.to_radians())?;
+            desc.lights.push(PunctualDesc::Environment(env));
+            desc.warnings.extend(warning);
+        }
+        Ok(())
+    }
+}
+
 impl CameraArgs {
     /// The camera overrides for scene validation (the focus point is resolved later, with a ray).
     pub fn settings(&self) -> CameraSettings {
@@ -463,6 +512,9 @@ pub struct RenderArgs {
     /// Camera settings.
     #[command(flatten)]
     pub camera: CameraArgs,
+    /// Lights added to the scene.
+    #[command(flatten)]
+    pub lights: LightArgs,
 }
 
 /// A command-line value that makes no sense, with the flag it came from.

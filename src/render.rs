@@ -78,10 +78,20 @@ impl std::error::Error for PrepareError {}
 
 /// Loads and validates a scene.
 pub fn load_scene(source: &SceneSource, camera: &CameraSettings) -> Result<Scene, PrepareError> {
-    let desc = match source {
+    load_scene_lit(source, camera, &crate::options::LightArgs::default())
+}
+
+/// Loads a scene, adds the command line's lights (sun, sky, environment) and validates it.
+pub fn load_scene_lit(
+    source: &SceneSource,
+    camera: &CameraSettings,
+    lights: &crate::options::LightArgs,
+) -> Result<Scene, PrepareError> {
+    let mut desc = match source {
         SceneSource::Builtin(name) => builtin::by_name(name).expect("built-in scene names are checked in from_arg"),
         SceneSource::File(path) => load::load(path).map_err(PrepareError::Load)?,
     };
+    lights.apply(&mut desc).map_err(PrepareError::Load)?;
     Scene::from_desc(desc, camera).map_err(PrepareError::Scene)
 }
 

@@ -432,7 +432,7 @@ fn emissive_double_sided_material_and_punctual_lights_load() {
     // The glTF default (metallic 1, roughness 1) is diffuse.
     assert_eq!(lamp.scatter, ScatterDesc::Diffuse);
 
-    assert_eq!(desc.lights.len(), 2, "{:?}", desc.lights);
+    assert_eq!(desc.lights.len(), 3, "{:?}", desc.lights);
     let PunctualDesc::Point { position, intensity } = desc.lights[0] else { panic!("{:?}", desc.lights[0]) };
     assert_close(position, Vec3::new(0.0, 3.0, 0.0), "point position");
     assert_close(intensity, Vec3::new(10.0, 5.0, 5.0), "point intensity = colour × intensity");
@@ -443,11 +443,44 @@ fn emissive_double_sided_material_and_punctual_lights_load() {
     assert_close(direction, -Vec3::Y, "spot direction: −z rotated −90° about x");
     assert_close(intensity, Vec3::splat(2.0), "spot intensity");
     assert_eq!((inner_cone, outer_cone), (0.2, 0.5));
-    for what in ["range ignored", "directional light ignored"] {
-        assert!(desc.warnings.iter().any(|w| w.contains(what)), "no '{what}' in {:?}", desc.warnings);
-    }
+    // Directional: illuminance = colour × intensity (lux as W/m²), travelling along the node's −Z.
+    let PunctualDesc::Directional { direction, illuminance, angular_diameter } = desc.lights[2] else {
+        panic!("{:?}", desc.lights[2])
+    };
+    assert_close(direction, -Vec3::Z, "directional light travels along −z");
+    assert_close(illuminance, Vec3::splat(3.0), "directional illuminance");
+    assert_eq!(angular_diameter, 0.0);
+    assert!(desc.warnings.iter().any(|w| w.contains("range ignored")), "{:?}", desc.warnings);
     assert!(desc.camera.is_none());
     validate(desc);
+}
+
+/// A scene lit only by a glTF sun (as Blender exports a sun lamp) loads and renders; a sun
+/// with zero or negative intensity is refused naming the file, node and light.
+#[test]
+fn a_gltf_sun_alone_lights_a_scene_and_a_dark_sun_is_refused() {
+    let dir = temp_dir("sun");
+    let mut buf = Buffer::default();
+    let pos = buf.floats("VEC3", &[-1.0, 0.0, 1.0, 1.0, 0.0, 1.0, 1.0, 0.0, -1.0]);
+    let doc = |intensity: &str| {
+        format!(
+            r#""extensionsUsed": ["KHR_lights_punctual"],
+               "extensions": {{"KHR_lights_punctual": {{"lights": [{{"type": "directional", "intensity": {intensity}}}]}}}},
+               "meshes": [{{"primitives": [{{"attributes": {{"POSITION": {pos}}}}}]}}],
+               "nodes": [{{"mesh": 0}},
+                         {{"rotation": [{}, 0, 0, {}], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}}]"#,
+            -FRAC_1_SQRT_2, FRAC_1_SQRT_2
+        )
+    };
+    let path = write(&dir, "sunlit.gltf", buf.document(&doc("5"), true));
+    let desc = load::load(&path).unwrap();
+    let scene = Scene::from_desc(desc, &CameraSettings::default()).expect("a sun is a light");
+    assert!(scene.lights.list.iter().any(|l| matches!(l, mirage::scene::Light::Sun(_))));
+    for bad in ["0", "-2"] {
+        let path = write(&dir, "dark.gltf", buf.document(&doc(bad), true));
+        let e = load::load(&path).unwrap_err().to_string();
+        assert!(e.contains("dark.gltf") && e.contains("node 1, light 0") && e.contains("directional"), "{e}");
+    }
 }
 
 #[test]
@@ -600,6 +633,22 @@ fn committed_scene_files_load_back_into_the_builtin_scenes() {
             let obj_emitter = path.extension().is_some_and(|e| e == "obj") && bm.emission != Vec3::ZERO;
             if !obj_emitter {
                 assert_eq!(mm.double_sided, bm.double_sided, "{file}: {}", bm.name);
+            }
+        }
+        // Lights that are not surfaces (the sunlit room's sun and sky) come back too.
+        assert_eq!(desc.lights.len(), builtin.lights.len(), "{file}: lights");
+        for (l, b) in desc.lights.iter().zip(&builtin.lights) {
+            match (l, b) {
+                (
+                    PunctualDesc::Directional { direction, illuminance, angular_diameter },
+                    PunctualDesc::Directional { direction: bd, illuminance: bi, angular_diameter: ba },
+                ) => {
+                    assert_close(*direction, *bd, &format!("{file}: sun direction"));
+                    assert_close(*illuminance, *bi, &format!("{file}: sun illuminance"));
+                    assert!((angular_diameter - ba).abs() < 1e-6, "{file}: sun diameter");
+                }
+                (PunctualDesc::Environment(a), PunctualDesc::Environment(b)) => assert_eq!(a, b, "{file}: sky"),
+                _ => panic!("{file}: light {l:?} read back for {b:?}"),
             }
         }
         let (c, b) = (desc.camera.unwrap(), builtin.camera.unwrap());

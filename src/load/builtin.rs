@@ -8,10 +8,10 @@ use std::f32::consts::PI;
 
 use glam::{Mat3, Vec3, vec3};
 
-use super::desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, ScatterDesc, SceneDesc};
+use super::desc::{CameraDesc, EnvironmentDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc};
 
 /// Names of the built-in scenes, in the order of scenes/README.md.
-pub const NAMES: [&str; 10] = [
+pub const NAMES: [&str; 11] = [
     "cornell",
     "furnace",
     "ajar-door",
@@ -22,6 +22,7 @@ pub const NAMES: [&str; 10] = [
     "ajar-door-thick",
     "light-box-thick",
     "deep-shaft",
+    "sunlit-room",
 ];
 
 /// The hard-visibility scenes: walls with real thickness (openings are tunnels), openings of a
@@ -41,6 +42,7 @@ pub fn by_name(name: &str) -> Option<SceneDesc> {
         "ajar-door-thick" => ajar_door_thick(),
         "light-box-thick" => light_box_thick(),
         "deep-shaft" => deep_shaft(),
+        "sunlit-room" => sunlit_room(),
         "sphere-field" => sphere_field(28),
         _ => return None,
     })
@@ -120,6 +122,21 @@ impl Builder {
             width: Some(width),
             height: Some(height),
         });
+    }
+
+    /// Adds a sun in direction `towards` (from the scene to it) of illuminance `e`, angular
+    /// diameter `diameter_deg`.
+    pub fn sun(&mut self, towards: Vec3, e: Vec3, diameter_deg: f32) {
+        self.desc.lights.push(PunctualDesc::Directional {
+            direction: -towards.normalize(),
+            illuminance: e,
+            angular_diameter: diameter_deg.to_radians(),
+        });
+    }
+
+    /// Adds a constant sky of radiance `l`.
+    pub fn sky(&mut self, l: Vec3) {
+        self.desc.lights.push(PunctualDesc::Environment(EnvironmentDesc::Constant(l)));
     }
 
     /// The finished description.
@@ -637,6 +654,45 @@ pub fn deep_shaft() -> SceneDesc {
         &quad(vec3(sx + a, y, sz + a), vec3(sx + c, y, sz + a), vec3(sx + c, y, sz + c), vec3(sx + a, y, sz + c)),
     );
     b.camera(vec3(0.0, 1.6, 2.8), vec3(0.0, 0.3, -1.0), 55.0, 256, 192);
+    b.finish()
+}
+
+/// A room with 25 cm walls lit only by the sun and the sky through two windows (1 m × 1.2 m
+/// tunnels through the south wall, z = 4): the sun, 30° high, lays two bright patches on the
+/// floor; the camera stands in the north-east corner looking away from the windows, so what it
+/// sees is lit by light that came through them, most of it after a bounce. Outside, a ground
+/// plane and the walls' outer faces bounce sun and sky light into the windows.
+pub fn sunlit_room() -> SceneDesc {
+    let mut b = Builder::new("sunlit-room");
+    let wall = b.diffuse("wall", vec3(0.8, 0.78, 0.72));
+    let floor = b.diffuse("floor", vec3(0.55, 0.4, 0.3));
+    let ground = b.diffuse("ground", vec3(0.3, 0.32, 0.25));
+    let (w, h, d, t) = (5.0f32, 2.8f32, 4.0f32, 0.25f32);
+    // The inside faces, the window wall (z = d) with its holes, then the outside faces.
+    let windows = [[0.8, 1.0, 1.8, 2.2], [3.2, 1.0, 4.2, 2.2]];
+    let mut inside = cuboid(vec3(0.0, 0.0, 0.0), vec3(w, h, d), true);
+    let floor_tris: Vec<[Vec3; 3]> = inside.drain(4..6).collect();
+    let _south: Vec<[Vec3; 3]> = inside.drain(8..10).collect();
+    inside.extend(rect_with_holes(vec3(0.0, 0.0, d), Vec3::X, Vec3::Y, w, h, &windows));
+    let mut outside = cuboid(vec3(-t, -t, -t), vec3(w + t, h + t, d + t), false);
+    outside.drain(10..12);
+    let shifted: Vec<[f32; 4]> = windows.iter().map(|&[u0, v0, u1, v1]| [u0 + t, v0 + t, u1 + t, v1 + t]).collect();
+    outside.extend(rect_with_holes(vec3(-t, -t, d + t), Vec3::X, Vec3::Y, w + 2.0 * t, h + 2.0 * t, &shifted));
+    outside.extend(tunnels(vec3(0.0, 0.0, d), Vec3::X, Vec3::Y, Vec3::Z, t, &windows));
+    b.triangles("walls", wall, &inside);
+    b.triangles("outer walls", wall, &outside);
+    b.triangles("floor", floor, &floor_tris);
+    let g = -t - 0.001;
+    b.triangles(
+        "ground",
+        ground,
+        &quad(vec3(-12.0, g, -12.0), vec3(-12.0, g, 16.0), vec3(17.0, g, 16.0), vec3(17.0, g, -12.0)),
+    );
+    // The sun from the south-south-west, 30° up; a pale blue sky.
+    let (az, el) = (20f32.to_radians(), 30f32.to_radians());
+    b.sun(vec3(el.cos() * az.sin(), el.sin(), el.cos() * az.cos()), Vec3::new(10.0, 9.5, 8.8), 0.53);
+    b.sky(vec3(0.35, 0.45, 0.6));
+    b.camera(vec3(4.6, 1.7, 0.4), vec3(0.6, 0.5, 2.6), 65.0, 256, 192);
     b.finish()
 }
 

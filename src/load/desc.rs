@@ -124,7 +124,9 @@ pub struct MeshDesc {
     pub material: usize,
 }
 
-/// A punctual light (KHR_lights_punctual), intensity taken as radiant intensity in W/sr.
+/// A light that is not a surface: a punctual light (KHR_lights_punctual, intensity taken as
+/// radiant intensity in W/sr), a distant light (glTF `directional`, or `--sun`) or an
+/// environment (`--sky`, `--environment`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum PunctualDesc {
     /// Isotropic point light.
@@ -146,6 +148,37 @@ pub enum PunctualDesc {
         inner_cone: f32,
         /// Outer cone angle (radians): zero outside.
         outer_cone: f32,
+    },
+    /// A distant light (the sun).
+    Directional {
+        /// Unit direction the light travels in (glTF: the node's −Z).
+        direction: Vec3,
+        /// Illuminance on a surface facing the light (W/m² per channel; glTF's lux).
+        illuminance: Vec3,
+        /// Angular diameter (radians); 0 for parallel light.
+        angular_diameter: f32,
+    },
+    /// An environment light at infinity.
+    Environment(EnvironmentDesc),
+}
+
+/// The radiance of an environment light.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentDesc {
+    /// The same radiance from every direction.
+    Constant(Vec3),
+    /// An equirectangular map (+y up, row 0 at the zenith; see `scene::sky`).
+    Map {
+        /// The file it was read from (for messages).
+        path: PathBuf,
+        /// Width in texels.
+        width: u32,
+        /// Height in texels.
+        height: u32,
+        /// Radiance per texel, row-major.
+        texels: Vec<Vec3>,
+        /// Rotation about +y, radians.
+        rotation: f32,
     },
 }
 
@@ -207,6 +240,8 @@ impl SceneDesc {
                     *position *= s;
                     *intensity *= s * s;
                 }
+                // At infinity: the same light whatever the scale.
+                PunctualDesc::Directional { .. } | PunctualDesc::Environment(_) => {}
             }
         }
         if let Some(c) = &mut self.camera {

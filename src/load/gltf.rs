@@ -7,8 +7,10 @@
 //! camera met becomes the scene camera (eye = node origin, looking down the node's −z, up = +y,
 //! `aspectRatio` kept; the image size comes from the scene's `extras.mirage.width/height` when
 //! present, as scenes/README.md specifies, else it is left to the command line);
-//! `KHR_lights_punctual` point and spot lights become [`PunctualDesc`]s (range ignored,
-//! directional lights skipped, each with a warning).
+//! `KHR_lights_punctual` point and spot lights become [`PunctualDesc`]s (range ignored with a
+//! warning); directional lights become distant lights (the sun: colour × intensity as the
+//! illuminance in lux, taken as W/m², travelling along the node's −Z; a zero or negative
+//! intensity is an error naming the node).
 //!
 //! # Materials
 //!
@@ -91,11 +93,22 @@ pub fn load_gltf(path: &Path) -> Result<SceneDesc, LoadError> {
     loader.report_ignored_features();
     let scene = loader.walk()?;
     let mut desc = loader.desc;
+    let extras = scene.and_then(|s| scene_extras(json_chunk(&bytes), s)).unwrap_or_default();
     if let Some(camera) = desc.camera.as_mut()
-        && let Some((width, height)) = scene.and_then(|s| scene_resolution(json_chunk(&bytes), s))
+        && let Some((width, height)) = extras.resolution
     {
         camera.width = Some(width);
         camera.height = Some(height);
+    }
+    if let Some(d) = extras.sun_angular_diameter {
+        for l in &mut desc.lights {
+            if let PunctualDesc::Directional { angular_diameter, .. } = l {
+                *angular_diameter = d;
+            }
+        }
+    }
+    if let Some(l) = extras.sky {
+        desc.lights.push(PunctualDesc::Environment(crate::load::EnvironmentDesc::Constant(l)));
     }
     Ok(desc)
 }
@@ -109,10 +122,20 @@ fn json_chunk(bytes: &[u8]) -> &[u8] {
     bytes.get(20..20usize.saturating_add(length as usize)).unwrap_or_default()
 }
 
-/// The image size mirage's scene generator writes into a scene's extras,
-/// `"extras": {"mirage": {"width": W, "height": H}}` (scenes/README.md). The gltf crate is built
-/// without its `extras` feature, so this reads the JSON directly.
-fn scene_resolution(json: &[u8], scene: usize) -> Option<(u32, u32)> {
+/// What mirage's scene generator writes into a scene's extras (scenes/README.md):
+/// `"extras": {"mirage": {"width": W, "height": H, "sky": [R, G, B], "sun_angular_diameter": RAD}}`,
+/// each optional: the image size, a constant sky (glTF has no environment light) and the angular
+/// diameter of the directional lights (glTF's are parallel).
+#[derive(Clone, Copy, Debug, Default)]
+struct MirageExtras {
+    resolution: Option<(u32, u32)>,
+    sky: Option<Vec3>,
+    sun_angular_diameter: Option<f32>,
+}
+
+/// Reads [`MirageExtras`]. The gltf crate is built without its `extras` feature, so this reads
+/// the JSON directly.
+fn scene_extras(json: &[u8], scene: usize) -> Option<MirageExtras> {
     #[derive(serde::Deserialize)]
     struct Root {
         #[serde(default)]
@@ -126,7 +149,16 @@ fn scene_resolution(json: &[u8], scene: usize) -> Option<(u32, u32)> {
     let root: Root = serde_json::from_slice(json).ok()?;
     let mirage = root.scenes.get(scene)?.extras.as_ref()?.get("mirage")?;
     let pixels = |key: &str| mirage.get(key)?.as_u64().and_then(|v| u32::try_from(v).ok()).filter(|&v| v > 0);
-    Some((pixels("width")?, pixels("height")?))
+    let number = |v: &serde_json::Value| v.as_f64().map(|x| x as f32).filter(|x| x.is_finite());
+    let sky = mirage.get("sky").and_then(|v| v.as_array()).and_then(|a| match a.as_slice() {
+        [r, g, b] => Some(Vec3::new(number(r)?, number(g)?, number(b)?)),
+        _ => None,
+    });
+    Some(MirageExtras {
+        resolution: pixels("width").zip(pixels("height")),
+        sky,
+        sun_angular_diameter: mirage.get("sun_angular_diameter").and_then(number),
+    })
 }
 
 /// A parsed and validated document.
@@ -474,7 +506,7 @@ impl Loader<'_> {
             self.camera(node.index(), camera.index(), world);
         }
         if let Some(light) = node.light() {
-            self.light(&place, &light, world);
+            self.light(&place, &light, world)?;
         }
         if let Some(mesh) = node.mesh() {
             for (p, prim) in mesh.primitives().enumerate() {
@@ -517,7 +549,7 @@ impl Loader<'_> {
         });
     }
 
-    fn light(&mut self, place: &str, light: &gltf::khr_lights_punctual::Light, world: &Mat4) {
+    fn light(&mut self, place: &str, light: &gltf::khr_lights_punctual::Light, world: &Mat4) -> Result<(), LoadError> {
         let place = format!("{place}, light {}", light.index());
         if light.range().is_some() {
             self.warn(&place, "range ignored (lights fall off with the inverse square law)");
@@ -526,7 +558,29 @@ impl Loader<'_> {
         let intensity = Vec3::from_array(light.color()) * light.intensity();
         match light.kind() {
             gltf::khr_lights_punctual::Kind::Directional => {
-                self.warn(&place, "directional light ignored (not supported)");
+                if !(light.intensity() > 0.0 && intensity.is_finite() && intensity.min_element() >= 0.0) {
+                    return Err(self
+                        .error(
+                            LoadErrorKind::Invalid,
+                            format!(
+                                "directional light intensity {} × colour {:?} must be positive and finite",
+                                light.intensity(),
+                                light.color()
+                            ),
+                        )
+                        .at(place));
+                }
+                let direction = (-world.z_axis.truncate()).normalize_or_zero();
+                if direction == Vec3::ZERO || !direction.is_finite() {
+                    return Err(self
+                        .error(LoadErrorKind::Invalid, "directional light node transform is degenerate")
+                        .at(place));
+                }
+                self.desc.lights.push(PunctualDesc::Directional {
+                    direction,
+                    illuminance: intensity,
+                    angular_diameter: 0.0,
+                })
             }
             gltf::khr_lights_punctual::Kind::Point => {
                 self.desc.lights.push(PunctualDesc::Point { position, intensity })
@@ -541,6 +595,7 @@ impl Loader<'_> {
                 })
             }
         }
+        Ok(())
     }
 
     fn primitive(&mut self, origin: Origin, prim: &gltf::Primitive, world: &Mat4) -> Result<(), LoadError> {

@@ -8,13 +8,17 @@
 pub mod builtin;
 pub mod camera_json;
 pub mod desc;
+pub mod environment;
 pub mod error;
 pub mod gltf;
 pub mod obj;
 
 use std::path::Path;
 
-pub use desc::{CameraDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc, TextureDesc};
+pub use desc::{
+    CameraDesc, EnvironmentDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc, TextureDesc,
+};
+pub use environment::load_environment;
 pub use error::{LoadError, LoadErrorKind};
 
 /// Reads a scene file, choosing the parser by extension (`.gltf`, `.glb`, `.obj`).

@@ -67,7 +67,21 @@ pub fn radiance_of_length(
     let mut depth = 0u32;
     loop {
         stats.closest += 1;
-        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { break };
+        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else {
+            // The ray leaves the scene: the lights at infinity along it (the sky, a soft sun),
+            // weighed against next-event estimation as an emitter hit is.
+            if !scene.lights.escaped.is_empty() && counts(depth + 1) {
+                let le = scene.escaped(ray.dir);
+                if le != Vec3::ZERO {
+                    if depth == 0 || prev_delta {
+                        l += beta * le;
+                    } else {
+                        l += beta * le * power_heuristic(prev_pdf_w, scene.pdf_li_escaped(ray.dir));
+                    }
+                }
+            }
+            break;
+        };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
         if depth == 0 {
             x1 = sp.p;

@@ -112,10 +112,16 @@ pub fn connect(
         if ls.pdf_w <= 0.0 || ls.li == Vec3::ZERO {
             return none;
         }
-        // Radiance (or intensity / d²) arriving per unit solid-angle density.
-        let mut lv = Vertex::light(scene, ls.light, ls.p, ls.n, ls.li / ls.pdf_w, 0.0);
-        lv.pdf_fwd = lv.pdf_light_origin(scene);
+        // Radiance (or intensity / d², or a delta sun's irradiance) arriving per unit
+        // solid-angle density.
+        let beta = ls.li / ls.pdf_w;
+        let mut lv = if scene.lights.list[ls.light as usize].at_infinity() {
+            Vertex::at_infinity(ls.light, ls.p, ls.wi, beta, 0.0)
+        } else {
+            Vertex::light(scene, ls.light, ls.p, ls.n, beta, 0.0)
+        };
         lv.delta = ls.delta;
+        lv.pdf_fwd = lv.pdf_light_origin(scene);
         let mut c = pt.beta * pt.f(&lv, TransportMode::Radiance) * lv.beta;
         if pt.on_surface() {
             c *= ls.wi.dot(pt.ns).abs();

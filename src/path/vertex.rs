@@ -27,6 +27,12 @@ pub enum VertexKind {
 }
 
 /// One vertex of a camera or light sub-path.
+///
+/// A vertex on a light at infinity (the sun, the sky: [`Vertex::at_infinity`]) lies beyond the
+/// bounding sphere in its direction (a light sub-path's first vertex on the disk it starts
+/// from, a camera path's escape or a next-event sample at [`Scene::far_point`]); it has no
+/// normal (`ng` zero), `ns` holds the unit direction from the scene towards the light, and
+/// densities and the geometry term at it are in solid angle (pbrt-v3 §16.3: no 1/d², no cosine).
 #[derive(Clone, Copy, Debug)]
 pub struct Vertex {
     /// Kind.
@@ -34,9 +40,9 @@ pub struct Vertex {
     /// Position.
     pub p: Vec3,
     /// Geometric normal: the winding normal on surfaces, the emitting face on area lights, the
-    /// viewing direction on the camera, zero on point and spot lights.
+    /// viewing direction on the camera, zero on point and spot lights and at infinity.
     pub ng: Vec3,
-    /// Shading normal (same side as `ng`).
+    /// Shading normal (same side as `ng`); at infinity, the direction towards the light.
     pub ns: Vec3,
     /// Texture coordinates.
     pub uv: Vec2,
@@ -56,6 +62,8 @@ pub struct Vertex {
     pub pdf_fwd: f32,
     /// Area density of generating this vertex from the other end.
     pub pdf_rev: f32,
+    /// On a light at infinity (see the type's doc).
+    pub at_infinity: bool,
 }
 
 impl Vertex {
@@ -75,6 +83,30 @@ impl Vertex {
             delta: false,
             pdf_fwd: pdf_pos,
             pdf_rev: 0.0,
+            at_infinity: false,
+        }
+    }
+
+    /// A vertex on the lights at infinity in direction `wi` (from the scene towards them), at
+    /// `p` beyond the bounding sphere: `light` is the light it was sampled on (for a camera
+    /// path's escape, any of the lights a ray can meet: its radiance is theirs together,
+    /// [`Scene::escaped`]).
+    pub fn at_infinity(light: u32, p: Vec3, wi: Vec3, beta: Vec3, pdf_fwd: f32) -> Vertex {
+        Vertex {
+            kind: VertexKind::Light,
+            p,
+            ng: Vec3::ZERO,
+            ns: wi,
+            uv: Vec2::ZERO,
+            tri: NO_TRI,
+            light,
+            wo: Vec3::ZERO,
+            bsdf: None,
+            beta,
+            delta: false,
+            pdf_fwd,
+            pdf_rev: 0.0,
+            at_infinity: true,
         }
     }
 
@@ -98,6 +130,7 @@ impl Vertex {
             delta: false,
             pdf_fwd: pdf_pos,
             pdf_rev: 0.0,
+            at_infinity: false,
         }
     }
 
@@ -107,16 +140,18 @@ impl Vertex {
         self.ng != Vec3::ZERO && self.kind != VertexKind::Camera
     }
 
-    /// True for vertices on a point or spot light.
+    /// True for vertices on a light no ray can hit: a point or spot light, or a delta sun.
     #[inline]
     pub fn is_delta_light(&self) -> bool {
-        self.kind == VertexKind::Light && self.tri == NO_TRI
+        self.kind == VertexKind::Light && self.tri == NO_TRI && (!self.at_infinity || self.delta)
     }
 
-    /// True when a deterministic connection can end at this vertex.
+    /// True when a deterministic connection can end at this vertex (never at infinity: only a
+    /// sampled direction reaches it).
     #[inline]
     pub fn connectible(&self) -> bool {
         match self.kind {
+            _ if self.at_infinity => false,
             VertexKind::Camera | VertexKind::Light => true,
             VertexKind::Surface => self.bsdf.is_some_and(|b| !b.is_delta()),
         }
@@ -143,8 +178,12 @@ impl Vertex {
 
     /// Converts a solid-angle density at this vertex towards `next` into an area density at
     /// `next` (`pdf_a = pdf_w |cos θ_next| / d²`).
+    /// A vertex at infinity keeps the solid-angle density.
     #[inline]
     pub fn convert_density(&self, pdf_w: f32, next: &Vertex) -> f32 {
+        if next.at_infinity {
+            return pdf_w;
+        }
         let w = next.p - self.p;
         let d2 = w.length_squared();
         if !(d2 > 0.0) {
@@ -177,26 +216,45 @@ impl Vertex {
     }
 
     /// Area density at `next` with which this light (or emissive surface) vertex emits
-    /// towards it.
+    /// towards it. From infinity: the disk's area density 1/(πR²) times the cosine at `next`
+    /// (the light's choice and direction are in this vertex's own density).
     pub fn pdf_light(&self, scene: &Scene, next: &Vertex) -> f32 {
         let light = self.light;
         if light == NO_LIGHT {
             return 0.0;
         }
+        if self.at_infinity {
+            let r = scene.bounding_sphere().1;
+            let cos = if next.on_surface() { next.ng.dot(self.ns).abs() } else { 1.0 };
+            return cos / (std::f32::consts::PI * r * r);
+        }
         let Some(w) = (next.p - self.p).try_normalize() else { return 0.0 };
         self.convert_density(scene.pdf_light_direction(light, self.ng, w), next)
     }
 
-    /// Area density with which a light sub-path starts at this (light or emissive) vertex.
+    /// Area density with which a light sub-path starts at this (light or emissive) vertex. At
+    /// infinity: the solid-angle density of its direction over all lights a ray meets there
+    /// (light choice included), or the choice alone for a delta sun.
     pub fn pdf_light_origin(&self, scene: &Scene) -> f32 {
         if self.light == NO_LIGHT {
             return 0.0;
         }
+        if self.at_infinity {
+            return if self.delta {
+                scene.lights.distribution.pmf(self.light as usize)
+            } else {
+                scene.pdf_li_escaped(self.ns)
+            };
+        }
         scene.pdf_light_position(self.light)
     }
 
-    /// Radiance this surface vertex emits towards `to` (zero unless it is on an emitter).
+    /// Radiance this surface vertex emits towards `to` (zero unless it is on an emitter); at
+    /// infinity, the radiance of the lights there along its direction.
     pub fn le(&self, scene: &Scene, to: &Vertex) -> Vec3 {
+        if self.at_infinity {
+            return if self.delta { Vec3::ZERO } else { scene.escaped(self.ns) };
+        }
         if self.kind != VertexKind::Surface || self.light == NO_LIGHT {
             return Vec3::ZERO;
         }
@@ -216,8 +274,13 @@ pub fn shading_correction(bsdf: &Bsdf, wo: Vec3, wi: Vec3) -> f32 {
 
 /// The geometric term `|cos θ_a| |cos θ_b| / d²` between two vertices, with shading normals
 /// on surfaces (visibility not included).
+/// With one end at infinity, only the other end's cosine (solid-angle measure there).
 #[inline]
 pub fn geometry(a: &Vertex, b: &Vertex) -> f32 {
+    if a.at_infinity || b.at_infinity {
+        let (v, wi) = if a.at_infinity { (b, a.ns) } else { (a, b.ns) };
+        return if v.on_surface() { v.ns.dot(wi).abs() } else { 1.0 };
+    }
     let d = b.p - a.p;
     let d2 = d.length_squared();
     if !(d2 > 0.0) {

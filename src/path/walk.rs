@@ -132,6 +132,10 @@ fn light_walk(
     if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.le == Vec3::ZERO {
         return;
     }
+    if es.at_infinity {
+        light_walk_from_infinity(scene, accel, dist, &es, sampler, max_vertices, roulette, path, stats);
+        return;
+    }
     let mut v = Vertex::light(scene, es.light, es.p, es.n, es.le, es.pdf_pos);
     v.delta = es.delta_pos;
     path.push(v);
@@ -141,6 +145,40 @@ fn light_walk(
         if es.n == Vec3::ZERO { es.p } else { es.p + es.n * ray_offset(es.p, &scene.mesh.corners(path[0].tri)) };
     let start = (Ray { origin, dir: es.dir }, beta, es.pdf_dir);
     walk(scene, accel, start, sampler, max_vertices, TransportMode::Importance, roulette, path, stats);
+}
+
+/// A light sub-path from a light at infinity (pbrt-v3 §16.3.2): the ray leaves the disk point
+/// `es.p` along `es.dir`, carrying Le / (choice · disk density · direction density) = πR²·L /
+/// (choice · p(ω)). The first vertex's density is the direction's over all the lights a ray
+/// meets there (or the choice alone for a delta sun), the next one's the disk's 1/(πR²) times
+/// its cosine: the measures [`Vertex::pdf_light_origin`] and [`Vertex::pdf_light`] use.
+#[allow(clippy::too_many_arguments)]
+fn light_walk_from_infinity(
+    scene: &Scene,
+    accel: &Accel,
+    dist: &Distribution1D,
+    es: &crate::scene::EmissionSample,
+    sampler: &mut impl Sampler,
+    max_vertices: usize,
+    roulette: bool,
+    path: &mut Vec<Vertex>,
+    stats: &mut RayStats,
+) {
+    let wi = -es.dir;
+    let delta = scene.lights.list[es.light as usize].is_delta();
+    let pdf_origin = if delta { dist.pmf(es.light as usize) } else { scene.pdf_li_escaped_with(dist, wi) };
+    let mut v = Vertex::at_infinity(es.light, es.p, wi, es.le, pdf_origin);
+    v.delta = delta;
+    path.push(v);
+    let beta = es.le / (es.pdf_pos * es.pdf_dir);
+    let start = (Ray { origin: es.p, dir: es.dir }, beta, es.pdf_dir);
+    walk(scene, accel, start, sampler, max_vertices, TransportMode::Importance, roulette, path, stats);
+    if path.len() > 1 {
+        let r = scene.bounding_sphere().1;
+        let v1 = &mut path[1];
+        let cos = if v1.on_surface() { v1.ng.dot(wi).abs() } else { 1.0 };
+        v1.pdf_fwd = cos / (std::f32::consts::PI * r * r);
+    }
 }
 
 /// Extends `path` (whose last vertex emitted `ray` with solid-angle density `pdf_w`) by
@@ -176,7 +214,17 @@ fn walk(
     let beta_start = beta.max_element().max(1e-30);
     while path.len() < max_vertices {
         stats.closest += 1;
-        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else { break };
+        let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else {
+            // A camera path that leaves the scene ends on the lights at infinity, if any.
+            if mode == TransportMode::Radiance
+                && let Some(&light) = scene.lights.escaped.first()
+            {
+                let prev = path.last().expect("walks start from a vertex");
+                let p = scene.far_point(prev.p, ray.dir);
+                path.push(Vertex::at_infinity(light, p, ray.dir, beta, pdf_w));
+            }
+            break;
+        };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
         let wo = -ray.dir;
         let material = scene.material_of(hit.tri);
@@ -196,6 +244,7 @@ fn walk(
             delta: false,
             pdf_fwd: 0.0,
             pdf_rev: 0.0,
+            at_infinity: false,
         };
         v.pdf_fwd = prev.convert_density(pdf_w, &v);
         path.push(v);

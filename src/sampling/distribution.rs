@@ -89,6 +89,62 @@ impl Distribution1D {
     }
 }
 
+/// A piecewise-constant 2D distribution over the unit square, `width` × `height` cells with
+/// probability ∝ the given weights: a marginal over rows and a conditional per row (pbrt-v4
+/// §A.5.6). Used to importance-sample an environment map by its luminance.
+#[derive(Clone, Debug)]
+pub struct Distribution2D {
+    width: usize,
+    height: usize,
+    rows: Vec<Option<Distribution1D>>,
+    marginal: Distribution1D,
+}
+
+/// One draw from a [`Distribution2D`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample2D {
+    /// Point in the unit square, uniform within the chosen cell.
+    pub uv: glam::Vec2,
+    /// Density of `uv` with respect to area in the unit square.
+    pub pdf: f32,
+}
+
+impl Distribution2D {
+    /// A distribution over `width` × `height` cells (row-major weights, top row first); `None`
+    /// when every weight is zero or the sizes do not match.
+    pub fn new(weights: &[f64], width: usize, height: usize) -> Option<Self> {
+        if width == 0 || height == 0 || weights.len() != width * height {
+            return None;
+        }
+        let rows: Vec<Option<Distribution1D>> = weights.chunks_exact(width).map(Distribution1D::new).collect();
+        let marginal =
+            Distribution1D::new(&rows.iter().map(|r| r.as_ref().map_or(0.0, |r| r.total())).collect::<Vec<_>>())?;
+        Some(Distribution2D { width, height, rows, marginal })
+    }
+
+    /// A point ∝ the weights.
+    pub fn sample(&self, u: glam::Vec2) -> Sample2D {
+        let row = self.marginal.sample(u.y);
+        let cond = self.rows[row.index].as_ref().expect("the marginal never picks an empty row");
+        let col = cond.sample(u.x);
+        let uv = glam::Vec2::new(
+            (col.index as f32 + col.u_remapped) / self.width as f32,
+            (row.index as f32 + row.u_remapped) / self.height as f32,
+        );
+        Sample2D { uv, pdf: row.pmf * col.pmf * (self.width * self.height) as f32 }
+    }
+
+    /// Density of the point `uv` of the unit square.
+    pub fn pdf(&self, uv: glam::Vec2) -> f32 {
+        let x = ((uv.x * self.width as f32) as usize).min(self.width - 1);
+        let y = ((uv.y * self.height as f32) as usize).min(self.height - 1);
+        match &self.rows[y] {
+            Some(r) => self.marginal.pmf(y) * r.pmf(x) * (self.width * self.height) as f32,
+            None => 0.0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,5 +172,39 @@ mod tests {
     fn all_zero_weights_give_none() {
         assert!(Distribution1D::new(&[0.0, f64::NAN, -1.0]).is_none());
         assert!(Distribution1D::new(&[]).is_none());
+    }
+
+    /// The 2D distribution's density integrates to one over the unit square, is ∝ the weights,
+    /// and its samples fall in cells with the frequencies of their weights.
+    #[test]
+    fn distribution_2d_density_is_normalised_and_followed_by_its_samples() {
+        let (w, h) = (5usize, 3usize);
+        let weights: Vec<f64> = (0..w * h).map(|i| if i % 4 == 1 { 0.0 } else { 1.0 + i as f64 }).collect();
+        let d = Distribution2D::new(&weights, w, h).unwrap();
+        let total: f64 = weights.iter().sum();
+        let mut integral = 0.0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let uv = glam::Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                let p = d.pdf(uv) as f64;
+                integral += p / (w * h) as f64;
+                assert!((p - weights[y * w + x] / total * (w * h) as f64).abs() < 1e-4, "cell ({x}, {y})");
+            }
+        }
+        assert!((integral - 1.0).abs() < 1e-5, "{integral}");
+        let mut r = Pcg32::new(3);
+        let n = 200_000;
+        let mut counts = vec![0u32; w * h];
+        for _ in 0..n {
+            let s = d.sample(glam::Vec2::new(r.next_f32(), r.next_f32()));
+            let (x, y) = ((s.uv.x * w as f32) as usize, (s.uv.y * h as f32) as usize);
+            assert!((s.pdf - d.pdf(s.uv)).abs() <= 1e-5 * s.pdf, "sample density");
+            counts[y * w + x] += 1;
+        }
+        for (i, &c) in counts.iter().enumerate() {
+            let p = weights[i] / total;
+            let sd = (p * (1.0 - p) / n as f64).sqrt();
+            assert!((c as f64 / n as f64 - p).abs() <= 5.0 * sd + 1e-9, "cell {i}: {c} of {n}, p {p}");
+        }
     }
 }

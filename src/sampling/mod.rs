@@ -7,7 +7,7 @@ pub mod rng;
 pub mod sampler;
 pub mod warp;
 
-pub use distribution::{DiscreteSample, Distribution1D};
+pub use distribution::{DiscreteSample, Distribution1D, Distribution2D, Sample2D};
 pub use mis::{balance_heuristic, power_heuristic};
 pub use rng::Pcg32;
 pub use sampler::{IndependentSampler, Sampler};

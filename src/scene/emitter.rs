@@ -1,6 +1,15 @@
-//! Emitters: emissive triangles, point and spot lights; the power distribution used to choose
-//! among them; and the sampling routines every estimator shares (next-event estimation,
-//! emission sampling for light paths, and their densities for MIS).
+//! Emitters: emissive triangles, point and spot lights, the sun and the sky (lights at infinity,
+//! [`super::sky`]); the power distribution used to choose among them; and the sampling routines
+//! every estimator shares (next-event estimation, emission sampling for light paths, and their
+//! densities for MIS).
+//!
+//! Lights at infinity follow pbrt (Pharr, Jakob & Humphreys, *Physically Based Rendering*, 3rd
+//! ed., §12.5 and §16.3.1): a light path leaving one starts on a disk of the scene's bounding
+//! sphere radius R facing the chosen direction (area density 1/(πR²)), so its power is
+//! πR²·∫L dω (the sun: πR²·E); next-event estimation picks a direction; a path that leaves the
+//! scene meets every non-delta one at once ([`Scene::escaped`], density [`Scene::pdf_li_escaped`]).
+//! A light vertex at infinity is stored at a point beyond the bounding sphere in its direction
+//! (`Scene::far_point`), so shadow rays test the whole scene.
 //!
 //! Radiometry (DESIGN §2): an emissive triangle has radiance `Le` on its front face (both faces
 //! when double-sided), power `Φ = π·Le·area` per emitting face; a point light of radiant
@@ -13,6 +22,7 @@ use glam::{Vec2, Vec3};
 
 use super::Scene;
 use super::mesh::NO_LIGHT;
+use super::sky::{Environment, Sun};
 use crate::bsdf::Frame;
 use crate::color::luminance;
 use crate::sampling::Distribution1D;
@@ -53,6 +63,28 @@ pub enum Light {
         /// Cosine of the outer cone angle.
         cos_outer: f32,
     },
+    /// The sun: a distant light (delta direction or a small cone).
+    Sun(Sun),
+    /// The sky: an environment light at infinity.
+    Sky(Environment),
+}
+
+impl Light {
+    /// True for lights at infinity (sun, sky).
+    #[inline]
+    pub fn at_infinity(&self) -> bool {
+        matches!(self, Light::Sun(_) | Light::Sky(_))
+    }
+
+    /// True for lights no ray can hit: point and spot lights, and a sun without extent.
+    #[inline]
+    pub fn is_delta(&self) -> bool {
+        match self {
+            Light::Point { .. } | Light::Spot { .. } => true,
+            Light::Sun(sun) => sun.is_delta(),
+            Light::Area { .. } | Light::Sky(_) => false,
+        }
+    }
 }
 
 /// The scene's lights and the distribution that chooses them ∝ power.
@@ -64,6 +96,8 @@ pub struct Lights {
     pub power: Vec<Vec3>,
     /// Chooses a light ∝ the luminance of its power.
     pub distribution: Distribution1D,
+    /// The lights at infinity that a ray leaving the scene can meet (sky, soft sun).
+    pub escaped: Vec<u32>,
 }
 
 impl Lights {
@@ -88,18 +122,20 @@ pub struct LightSample {
     pub light: u32,
     /// Position on the light.
     pub p: Vec3,
-    /// Unit normal of the emitting face at `p` (zero for point and spot lights).
+    /// Unit normal of the emitting face at `p` (zero for point and spot lights and lights at
+    /// infinity).
     pub n: Vec3,
     /// Unit direction from the reference point to `p`.
     pub wi: Vec3,
     /// Distance from the reference point to `p`.
     pub dist: f32,
-    /// Radiance arriving along `-wi` (area lights) or intensity / d² (point and spot lights).
+    /// Radiance arriving along `-wi` (area lights, sky, soft sun), intensity / d² (point and
+    /// spot lights) or irradiance (a delta sun).
     pub li: Vec3,
     /// Solid-angle density at the reference point, including the light choice; for delta
     /// lights, the choice probability alone.
     pub pdf_w: f32,
-    /// True for point and spot lights (a delta in position).
+    /// True for point and spot lights and a delta sun (a delta in position or direction).
     pub delta: bool,
 }
 
@@ -110,19 +146,23 @@ pub struct EmissionSample {
     pub light: u32,
     /// Position on the light.
     pub p: Vec3,
-    /// Unit normal of the emitting face (zero for point and spot lights).
+    /// Unit normal of the emitting face (zero for point and spot lights; for lights at infinity
+    /// the emission direction: the disk faces it).
     pub n: Vec3,
     /// Unit emission direction.
     pub dir: Vec3,
-    /// Emitted radiance (area) or intensity (point, spot) along `dir`.
+    /// Emitted radiance (area, sky, soft sun), intensity (point, spot) or irradiance (a delta
+    /// sun) along `dir`.
     pub le: Vec3,
     /// Area density of `p`, including the light choice (choice probability alone for delta
-    /// positions).
+    /// positions; on the disk of a light at infinity, choice / (πR²)).
     pub pdf_pos: f32,
-    /// Solid-angle density of `dir`.
+    /// Solid-angle density of `dir` (1 for a delta sun).
     pub pdf_dir: f32,
     /// True for point and spot lights.
     pub delta_pos: bool,
+    /// True for lights at infinity (the path starts on their disk).
+    pub at_infinity: bool,
 }
 
 impl Scene {
@@ -143,7 +183,59 @@ impl Scene {
         let power: Vec<Vec3> = list.iter().map(|l| self.power_of(l)).collect();
         let weights: Vec<f64> = power.iter().map(|&p| luminance(p).max(p.max_element() * 1e-3) as f64).collect();
         let distribution = Distribution1D::new(&weights)?;
-        Some(Lights { list, power, distribution })
+        let escaped = (0..list.len() as u32)
+            .filter(|&i| list[i as usize].at_infinity() && !list[i as usize].is_delta())
+            .collect();
+        Some(Lights { list, power, distribution, escaped })
+    }
+
+    /// The bounding sphere lights at infinity emit from: the bounds' centre and half diagonal.
+    pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        (self.bounds.center(), (0.5 * self.bounds.diagonal()).max(1e-6))
+    }
+
+    /// A point in direction `wi` from `p` beyond the bounding sphere: where a light at infinity
+    /// is placed for a shadow ray from `p` (distance 2R + |p − c|, never inside the scene).
+    pub fn far_point(&self, p: Vec3, wi: Vec3) -> Vec3 {
+        let (c, r) = self.bounding_sphere();
+        p + wi * (2.0 * r + (p - c).length())
+    }
+
+    /// Radiance arriving along a ray that leaves the scene in direction `wi`: the sky and every
+    /// soft sun whose disk it points into.
+    pub fn escaped(&self, wi: Vec3) -> Vec3 {
+        self.lights.escaped.iter().map(|&i| self.radiance_at_infinity(i, wi)).sum()
+    }
+
+    /// Radiance light `light` (at infinity) sends along `-wi`.
+    pub fn radiance_at_infinity(&self, light: u32, wi: Vec3) -> Vec3 {
+        match &self.lights.list[light as usize] {
+            Light::Sun(sun) => sun.radiance_from(wi),
+            Light::Sky(env) => env.radiance(wi),
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// Solid-angle density with which next-event estimation picks direction `wi` on the lights
+    /// at infinity, light choice included (for MIS of rays that leave the scene).
+    pub fn pdf_li_escaped(&self, wi: Vec3) -> f32 {
+        self.pdf_li_escaped_with(&self.lights.distribution, wi)
+    }
+
+    /// [`pdf_li_escaped`](Self::pdf_li_escaped) with lights chosen by `dist`.
+    pub fn pdf_li_escaped_with(&self, dist: &Distribution1D, wi: Vec3) -> f32 {
+        self.lights
+            .escaped
+            .iter()
+            .map(|&i| {
+                dist.pmf(i as usize)
+                    * match &self.lights.list[i as usize] {
+                        Light::Sun(sun) => sun.pdf_w(wi),
+                        Light::Sky(env) => env.pdf_w(wi),
+                        _ => 0.0,
+                    }
+            })
+            .sum()
     }
 
     fn power_of(&self, light: &Light) -> Vec3 {
@@ -157,6 +249,9 @@ impl Scene {
             Light::Spot { intensity, cos_inner, cos_outer, .. } => {
                 intensity * (2.0 * PI * ((1.0 - cos_inner) + (cos_inner - cos_outer) / 3.0))
             }
+            // What crosses the disk of the bounding sphere (module doc).
+            Light::Sun(ref sun) => sun.irradiance * (PI * self.bounding_sphere().1.powi(2)),
+            Light::Sky(ref env) => env.integral() * (PI * self.bounding_sphere().1.powi(2)),
         }
     }
 
@@ -239,7 +334,36 @@ impl Scene {
                     delta: true,
                 })
             }
+            // Lights at infinity that rays can meet are one emitter for next-event estimation:
+            // a direction from the chosen one, then the radiance of all of them along it over
+            // the mixture's density (the light choice included), which is what a ray leaving
+            // the scene in that direction sees and what MIS weighs it by.
+            Light::Sun(ref sun) if sun.is_delta() => {
+                let wi = sun.wi();
+                let p = self.far_point(p_ref, wi);
+                let (li, pdf_w, dist) = (sun.irradiance, choice.pmf, (p - p_ref).length());
+                Some(LightSample { light, p, n: Vec3::ZERO, wi, dist, li, pdf_w, delta: true })
+            }
+            Light::Sun(ref sun) => {
+                let (wi, ..) = sun.sample_wi(u);
+                self.sample_at_infinity(light, p_ref, wi)
+            }
+            Light::Sky(ref env) => {
+                let (wi, ..) = env.sample_wi(u)?;
+                self.sample_at_infinity(light, p_ref, wi)
+            }
         }
+    }
+
+    /// The next-event sample of direction `wi` on the non-delta lights at infinity.
+    fn sample_at_infinity(&self, light: u32, p_ref: Vec3, wi: Vec3) -> Option<LightSample> {
+        let pdf_w = self.pdf_li_escaped(wi);
+        if !(pdf_w > 0.0) {
+            return None;
+        }
+        let p = self.far_point(p_ref, wi);
+        let li = self.escaped(wi);
+        Some(LightSample { light, p, n: Vec3::ZERO, wi, dist: (p - p_ref).length(), li, pdf_w, delta: false })
     }
 
     /// Solid-angle density at `p_ref` with which [`sample_li`](Self::sample_li) picks the point
@@ -272,14 +396,24 @@ impl Scene {
         let pmf = dist.pmf(light as usize);
         match self.lights.list[light as usize] {
             Light::Area { area, .. } => pmf / area,
+            Light::Sun(_) | Light::Sky(_) => pmf / (PI * self.bounding_sphere().1.powi(2)),
             _ => pmf,
         }
     }
 
     /// Solid-angle density of emitting along `dir` from a point with emitting-face normal `n`
-    /// of `light` (cosine-weighted; half for two-sided emitters).
+    /// of `light` (cosine-weighted; half for two-sided emitters; for lights at infinity the
+    /// density of picking the direction −`dir` towards them, 1 for a delta sun).
     pub fn pdf_light_direction(&self, light: u32, n: Vec3, dir: Vec3) -> f32 {
         match self.lights.list[light as usize] {
+            Light::Sun(ref sun) => {
+                if sun.is_delta() {
+                    1.0
+                } else {
+                    sun.pdf_w(-dir)
+                }
+            }
+            Light::Sky(ref env) => env.pdf_w(-dir),
             Light::Area { two_sided, .. } => {
                 let c = n.dot(dir);
                 if two_sided { 0.5 * cosine_hemisphere_pdf_w(c.abs()) } else { cosine_hemisphere_pdf_w(c) }
@@ -323,6 +457,9 @@ impl Scene {
                     spot_falloff(local.z, cos_inner, cos_outer),
                 ))
             }
+            // The direction of a light at infinity is chosen with its disk point
+            // ([`Scene::sample_le`]); from a given point it is the one it arrives along.
+            Light::Sun(_) | Light::Sky(_) => None,
         }
     }
 
@@ -371,6 +508,7 @@ impl Scene {
                     pdf_pos: choice.pmf / area,
                     pdf_dir: side_pdf * cosine_hemisphere_pdf_w(local.z),
                     delta_pos: false,
+                    at_infinity: false,
                 })
             }
             Light::Point { position, intensity } => Some(EmissionSample {
@@ -382,6 +520,7 @@ impl Scene {
                 pdf_pos: choice.pmf,
                 pdf_dir: uniform_sphere_pdf_w(),
                 delta_pos: true,
+                at_infinity: false,
             }),
             Light::Spot { position, frame, intensity, cos_inner, cos_outer } => {
                 let local = sample_uniform_cone(u_dir, cos_outer);
@@ -395,8 +534,46 @@ impl Scene {
                     pdf_pos: choice.pmf,
                     pdf_dir: uniform_cone_pdf_w(cos_outer),
                     delta_pos: true,
+                    at_infinity: false,
                 })
             }
+            Light::Sun(ref sun) => {
+                let (wi, pdf_dir, le) = sun.sample_wi(u_dir);
+                Some(self.emission_at_infinity(light, choice.pmf, wi, pdf_dir, le, u_pos))
+            }
+            Light::Sky(ref env) => {
+                let (wi, pdf_dir, le) = env.sample_wi(u_dir)?;
+                Some(self.emission_at_infinity(light, choice.pmf, wi, pdf_dir, le, u_pos))
+            }
+        }
+    }
+
+    /// A light path from a light at infinity arriving along −`wi`: its start on the disk of the
+    /// bounding sphere's radius that faces `wi`, one radius out from the centre towards the light
+    /// (pbrt-v3 §12.5).
+    fn emission_at_infinity(
+        &self,
+        light: u32,
+        pmf: f32,
+        wi: Vec3,
+        pdf_dir: f32,
+        le: Vec3,
+        u_pos: Vec2,
+    ) -> EmissionSample {
+        let (c, r) = self.bounding_sphere();
+        let frame = Frame::from_normal(wi);
+        let d = crate::sampling::warp::sample_uniform_disk_concentric(u_pos) * r;
+        let p = c + wi * r + frame.to_world(Vec3::new(d.x, d.y, 0.0));
+        EmissionSample {
+            light,
+            p,
+            n: -wi,
+            dir: -wi,
+            le,
+            pdf_pos: pmf / (PI * r * r),
+            pdf_dir,
+            delta_pos: false,
+            at_infinity: true,
         }
     }
 }

@@ -10,6 +10,7 @@ pub mod camera;
 pub mod emitter;
 pub mod material;
 pub mod mesh;
+pub mod sky;
 
 use std::fmt;
 use std::path::PathBuf;
@@ -214,9 +215,46 @@ impl Scene {
                         cos_outer: outer.cos(),
                     }
                 }
+                PunctualDesc::Directional { direction, illuminance, angular_diameter } => {
+                    let Some(travel) = direction.try_normalize() else {
+                        return Err(err(format!("light {i}: directional light direction is zero or not finite")));
+                    };
+                    if !(illuminance.is_finite() && illuminance.min_element() >= 0.0 && illuminance.max_element() > 0.0)
+                    {
+                        return Err(err(format!(
+                            "light {i}: directional light illuminance {illuminance} must be finite, non-negative and not zero"
+                        )));
+                    }
+                    if !(angular_diameter.is_finite()
+                        && (0.0..=std::f32::consts::FRAC_PI_2).contains(&angular_diameter))
+                    {
+                        return Err(err(format!(
+                            "light {i}: sun angular diameter {:.3}° is outside 0…90°",
+                            angular_diameter.to_degrees()
+                        )));
+                    }
+                    Light::Sun(sky::Sun::new(-travel, illuminance, angular_diameter))
+                }
+                PunctualDesc::Environment(ref env) => match env {
+                    crate::load::EnvironmentDesc::Constant(l) => {
+                        if !(l.is_finite() && l.min_element() >= 0.0 && l.max_element() > 0.0) {
+                            return Err(err(format!(
+                                "light {i}: sky radiance {l} must be finite, non-negative and not zero"
+                            )));
+                        }
+                        Light::Sky(sky::Environment::Constant(*l))
+                    }
+                    crate::load::EnvironmentDesc::Map { path, width, height, texels, rotation } => {
+                        let map = sky::EnvMap::new(*width, *height, texels.clone(), *rotation).ok_or_else(|| {
+                            err(format!("{}: the environment map is black (no direction sends light)", path.display()))
+                        })?;
+                        Light::Sky(sky::Environment::Map(Box::new(map)))
+                    }
+                },
             };
             let pos = match &light {
                 Light::Point { position, .. } | Light::Spot { position, .. } => *position,
+                Light::Sun(_) | Light::Sky(_) => Vec3::ZERO,
                 Light::Area { .. } => unreachable!(),
             };
             if !pos.is_finite() {
@@ -248,6 +286,7 @@ impl Scene {
                 list: Vec::new(),
                 power: Vec::new(),
                 distribution: crate::sampling::Distribution1D::new(&[1.0]).unwrap(),
+                escaped: Vec::new(),
             },
             camera,
             bounds,

@@ -139,6 +139,9 @@ pub struct ViewArgs {
     /// Camera and window size (--width/--height: the window, or the headless image).
     #[command(flatten)]
     pub camera: CameraArgs,
+    /// Lights added to the scene (sun, sky, environment).
+    #[command(flatten)]
+    pub lights: crate::options::LightArgs,
 }
 
 /// Validated viewer settings.

@@ -83,7 +83,7 @@ fn run_view(args: &ViewArgs) -> Result<(), ViewError> {
             .build_global()
             .map_err(|e| ViewError::Options(format!("--threads {t}: cannot set up the worker threads: {e}")))?;
     }
-    let (scene, accel, name) = setup::prepare(args.scene.as_deref(), args.add_light, &args.camera)?;
+    let (scene, accel, name) = setup::prepare(args.scene.as_deref(), args.add_light, &args.camera, &args.lights)?;
     for w in &scene.warnings {
         eprintln!("mirage: warning: {w}");
     }

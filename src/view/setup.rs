@@ -67,16 +67,18 @@ pub fn prepare(
     scene_arg: Option<&str>,
     add_light: Option<f32>,
     camera: &CameraArgs,
+    lights: &crate::options::LightArgs,
 ) -> Result<(Scene, Accel, String), ViewError> {
     let source = SceneSource::from_arg(scene_arg);
     let mut scene = match add_light {
-        None => render::load_scene(&source, &camera.settings())?,
+        None => render::load_scene_lit(&source, &camera.settings(), lights)?,
         Some(le) => {
             let mut desc = match &source {
                 SceneSource::Builtin(name) => builtin::by_name(name).expect("built-in names are checked in from_arg"),
                 SceneSource::File(path) => load::load(path).map_err(PrepareError::Load)?,
             };
             add_sky_light(&mut desc, Vec3::splat(le));
+            lights.apply(&mut desc).map_err(PrepareError::Load)?;
             Scene::from_desc(desc, &camera.settings()).map_err(PrepareError::Scene)?
         }
     };

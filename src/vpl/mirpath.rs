@@ -125,24 +125,54 @@ pub fn extend_light(
     if light.is_empty() {
         let u_light = sampler.next_1d();
         let u_pos = sampler.next_2d();
-        let _ = sampler.next_2d();
-        let Some(es) = scene.sample_le_with(dist, u_light, u_pos, Vec2::new(0.5, 0.5)) else { return false };
+        let u_dir = sampler.next_2d();
+        let Some(es) = scene.sample_le_with(dist, u_light, u_pos, u_dir) else { return false };
         if !(es.pdf_pos > 0.0) {
             return false;
         }
-        let le = match scene.lights.list[es.light as usize] {
-            crate::scene::Light::Spot { intensity, .. } => intensity,
-            _ => es.le,
-        };
-        let mut v = Vertex::light(scene, es.light, es.p, es.n, le, es.pdf_pos);
-        v.delta = es.delta_pos;
-        light.push(v);
+        if es.at_infinity {
+            // A light at infinity: the first vertex is a direction (the disk point is drawn
+            // with the next vertex). Its density is the direction's over all the lights a
+            // ray meets there (the choice alone for a delta sun), and it carries their
+            // radiance together, as the directional VPL it is ([`vpl_of_vertex`]).
+            let wi = -es.dir;
+            let delta = scene.lights.list[es.light as usize].is_delta();
+            let (pdf, le) = if delta {
+                (dist.pmf(es.light as usize), es.le)
+            } else {
+                (scene.pdf_li_escaped_with(dist, wi), scene.escaped(wi))
+            };
+            if !(pdf > 0.0) {
+                return false;
+            }
+            let mut v = Vertex::at_infinity(es.light, scene.far_point(scene.bounding_sphere().0, wi), wi, le, pdf);
+            v.delta = delta;
+            light.push(v);
+        } else {
+            let le = match scene.lights.list[es.light as usize] {
+                crate::scene::Light::Spot { intensity, .. } => intensity,
+                _ => es.le,
+            };
+            let mut v = Vertex::light(scene, es.light, es.p, es.n, le, es.pdf_pos);
+            v.delta = es.delta_pos;
+            light.push(v);
+        }
     }
     while light.len() < target_len {
         let last = *light.last().expect("non-empty");
         let u_lobe = sampler.next_1d();
         let u = sampler.next_2d();
         let (origin, dir, pdf_w, weight) = match last.kind {
+            // From infinity: a point on the bounding sphere's disk facing the direction (area
+            // density 1/(πR²); the next vertex's is that times its cosine).
+            _ if last.at_infinity => {
+                let (c, r) = scene.bounding_sphere();
+                let frame = crate::bsdf::Frame::from_normal(last.ns);
+                let d = crate::sampling::warp::sample_uniform_disk_concentric(u) * r;
+                let origin = c + last.ns * r + frame.to_world(Vec3::new(d.x, d.y, 0.0));
+                let disk = 1.0 / (std::f32::consts::PI * r * r);
+                (origin, -last.ns, disk, last.beta / (last.pdf_fwd * disk))
+            }
             VertexKind::Light => {
                 let Some((dir, pdf_dir, falloff)) = scene.sample_light_direction(last.light, last.ng, u) else {
                     return false;
@@ -192,8 +222,9 @@ pub fn extend_light(
             delta: bsdf.is_delta(),
             pdf_fwd: 0.0,
             pdf_rev: 0.0,
+            at_infinity: false,
         };
-        v.pdf_fwd = last.convert_density(pdf_w, &v);
+        v.pdf_fwd = if last.at_infinity { pdf_w * v.ng.dot(dir).abs() } else { last.convert_density(pdf_w, &v) };
         if !(v.pdf_fwd > 0.0) || !v.pdf_fwd.is_finite() {
             return false;
         }

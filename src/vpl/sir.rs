@@ -32,6 +32,12 @@ pub fn vpl_of_vertex(scene: &Scene, v: &Vertex, i: usize, scale: f32, group: u32
                 return None;
             }
             let inv_pdf = scale / v.pdf_fwd;
+            if v.at_infinity {
+                // The light arriving along the path's first direction, over that direction's
+                // density over all lights at infinity (or the sun's choice).
+                let e = if v.delta { v.beta } else { scene.escaped(v.ns) };
+                return Some(directional_vpl(scene, v.ns, e * inv_pdf, group));
+            }
             let (radiance, lobe, normal, flags) = match scene.lights.list[v.light as usize] {
                 Light::Area { two_sided, .. } => {
                     (v.beta * inv_pdf, None, v.ng, ON_LIGHT | if two_sided { TWO_SIDED } else { 0 })
@@ -43,6 +49,7 @@ pub fn vpl_of_vertex(scene: &Scene, v: &Vertex, i: usize, scale: f32, group: u32
                     Vec3::ZERO,
                     ON_LIGHT,
                 ),
+                Light::Sun(_) | Light::Sky(_) => unreachable!("vertices at infinity return above"),
             };
             Some(Vpl { position: v.p, normal, radiance, lobe, count: 1, flags, length: 0, group })
         }
@@ -71,6 +78,29 @@ pub fn vpl_of_vertex(scene: &Scene, v: &Vertex, i: usize, scale: f32, group: u32
             })
         }
         VertexKind::Camera => None,
+    }
+}
+
+/// How far, in bounding-sphere radii, a directional VPL sits from the scene's centre.
+pub const DIRECTIONAL_DISTANCE: f32 = 1.0e5;
+
+/// A VPL for light arriving from direction `wi` (towards the light) with irradiance `e` on a
+/// surface facing it: a one-sided emitter facing the scene at [`DIRECTIONAL_DISTANCE`] radii
+/// in that direction, its radiance scaled by the squared distance, so that every kernel of the
+/// gather gives e·cos θ·f with no distance fall-off of its own (the 1/d² over the scene changes
+/// by at most 2/[`DIRECTIONAL_DISTANCE`] of the value) and its G never reaches a clamp.
+pub fn directional_vpl(scene: &Scene, wi: Vec3, e: Vec3, group: u32) -> Vpl {
+    let (c, r) = scene.bounding_sphere();
+    let d = DIRECTIONAL_DISTANCE * r;
+    Vpl {
+        position: c + wi * d,
+        normal: -wi,
+        radiance: e * (d * d),
+        lobe: None,
+        count: 1,
+        flags: ON_LIGHT,
+        length: 0,
+        group,
     }
 }
 

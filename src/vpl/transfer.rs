@@ -165,7 +165,13 @@ pub(crate) fn receiver_with<T>(
             stats.closest += 1;
             next = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
         }
-        let Some(hit) = next else { break };
+        let Some(hit) = next else {
+            // The sky (and a soft sun) seen directly or through specular bounces.
+            if !scene.lights.escaped.is_empty() {
+                emitted += beta * scene.escaped(ray.dir);
+            }
+            break;
+        };
         let sp = scene.surface_point(hit.tri, hit.b1, hit.b2);
         let wo = -ray.dir;
         emitted += beta * scene.emitted(hit.tri, sp.ng, sp.uv, wo);

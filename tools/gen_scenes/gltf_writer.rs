@@ -16,10 +16,15 @@
 //!   emissiveFactor `e`; `double_sided` → doubleSided;
 //! * camera: a perspective camera on its own node, translation = eye, rotation taking the local
 //!   axes (+X right, +Y up, −Z forward) to the look-at frame (see [`camera_rotation`]);
-//! * the resolution goes in the scene's `extras.mirage` (`width`, `height`).
+//! * the resolution goes in the scene's `extras.mirage` (`width`, `height`);
+//! * a distant light (the sun) becomes a `KHR_lights_punctual` directional light on its own node
+//!   (rotation taking −Z to the direction it travels; intensity the largest channel of the
+//!   illuminance, colour the rest), its angular diameter `extras.mirage.sun_angular_diameter`
+//!   (radians; glTF's are parallel); a constant sky `extras.mirage.sky` ([R, G, B]: glTF has
+//!   no environment light).
 
 use glam::{Mat3, Quat, Vec2, Vec3, Vec4};
-use mirage::load::{CameraDesc, MaterialDesc, MeshDesc, Origin, ScatterDesc, SceneDesc};
+use mirage::load::{CameraDesc, EnvironmentDesc, MaterialDesc, MeshDesc, Origin, PunctualDesc, ScatterDesc, SceneDesc};
 use serde::Serialize;
 
 use super::base64;
@@ -49,6 +54,8 @@ struct Root {
     asset: Asset,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     extensions_used: Vec<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extensions: Option<RootExtensions>,
     scene: usize,
     scenes: Vec<Scene>,
     nodes: Vec<Node>,
@@ -76,13 +83,49 @@ struct Scene {
 
 #[derive(Serialize)]
 struct SceneExtras {
-    mirage: Resolution,
+    mirage: MirageExtras,
+}
+
+#[derive(Serialize, Default)]
+struct MirageExtras {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    width: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    height: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sky: Option<[f32; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sun_angular_diameter: Option<f32>,
 }
 
 #[derive(Serialize)]
-struct Resolution {
-    width: u32,
-    height: u32,
+struct RootExtensions {
+    #[serde(rename = "KHR_lights_punctual")]
+    lights: LightList,
+}
+
+#[derive(Serialize)]
+struct LightList {
+    lights: Vec<Light>,
+}
+
+#[derive(Serialize)]
+struct Light {
+    #[serde(rename = "type")]
+    kind: &'static str,
+    color: [f32; 3],
+    intensity: f32,
+}
+
+#[derive(Serialize)]
+struct NodeExtensions {
+    #[serde(rename = "KHR_lights_punctual")]
+    light: NodeLight,
+}
+
+#[derive(Serialize)]
+struct NodeLight {
+    light: usize,
 }
 
 #[derive(Serialize)]
@@ -96,6 +139,8 @@ struct Node {
     translation: Option<[f32; 3]>,
     #[serde(skip_serializing_if = "Option::is_none")]
     rotation: Option<[f32; 4]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extensions: Option<NodeExtensions>,
 }
 
 #[derive(Serialize)]
@@ -313,8 +358,27 @@ fn check_writable(desc: &SceneDesc) -> Result<(), String> {
     if !desc.textures.is_empty() {
         return Err("textures are not supported by gen_scenes".into());
     }
-    if !desc.lights.is_empty() {
-        return Err("punctual lights are not supported by gen_scenes (the built-in scenes use emitting meshes)".into());
+    let mut sky = 0;
+    for l in &desc.lights {
+        match l {
+            PunctualDesc::Directional { direction, illuminance, angular_diameter } => {
+                if !(direction.is_finite() && illuminance.is_finite() && illuminance.max_element() > 0.0) {
+                    return Err("directional light: non-finite direction or illuminance".into());
+                }
+                if desc.lights.iter().any(
+                    |o| matches!(o, PunctualDesc::Directional { angular_diameter: d, .. } if d != angular_diameter),
+                ) {
+                    return Err(
+                        "directional lights of different angular diameters are not supported by gen_scenes".into()
+                    );
+                }
+            }
+            PunctualDesc::Environment(EnvironmentDesc::Constant(_)) => sky += 1,
+            _ => return Err("point, spot and image-based lights are not supported by gen_scenes".into()),
+        }
+    }
+    if sky > 1 {
+        return Err("more than one sky is not supported by gen_scenes".into());
     }
     let finite3 = |v: Vec3| v.is_finite();
     for m in &desc.materials {
@@ -407,12 +471,38 @@ pub fn write_gltf(desc: &SceneDesc) -> Result<Vec<u8>, String> {
                 material: m.material,
             }],
         });
-        nodes.push(Node { name, mesh: Some(i), camera: None, translation: None, rotation: None });
+        nodes.push(Node { name, mesh: Some(i), camera: None, translation: None, rotation: None, extensions: None });
     }
     let mut extensions_used = Vec::new();
     let materials = desc.materials.iter().map(|m| material(m, &mut extensions_used)).collect();
     let mut cameras = Vec::new();
-    let mut extras = None;
+    let mut mirage = MirageExtras::default();
+    let mut lights = Vec::new();
+    for l in &desc.lights {
+        match *l {
+            PunctualDesc::Directional { direction, illuminance, angular_diameter } => {
+                let intensity = illuminance.max_element();
+                let q = Quat::from_rotation_arc(-Vec3::Z, direction.normalize());
+                nodes.push(Node {
+                    name: format!("sun {}", lights.len()),
+                    mesh: None,
+                    camera: None,
+                    translation: None,
+                    rotation: Some((Vec4::from(if q.w < 0.0 { -q } else { q }) + 0.0).to_array()),
+                    extensions: Some(NodeExtensions { light: NodeLight { light: lights.len() } }),
+                });
+                lights.push(Light { kind: "directional", color: (illuminance / intensity).to_array(), intensity });
+                if angular_diameter > 0.0 {
+                    mirage.sun_angular_diameter = Some(angular_diameter);
+                }
+            }
+            PunctualDesc::Environment(EnvironmentDesc::Constant(l)) => mirage.sky = Some(l.to_array()),
+            _ => unreachable!("check_writable refuses the others"),
+        }
+    }
+    if !lights.is_empty() {
+        extensions_used.push("KHR_lights_punctual");
+    }
     if let Some(cam) = &desc.camera {
         let resolution = cam.width.zip(cam.height);
         let aspect_ratio = resolution.map(|(w, h)| w as f32 / h as f32).or(cam.aspect);
@@ -428,12 +518,18 @@ pub fn write_gltf(desc: &SceneDesc) -> Result<Vec<u8>, String> {
             // `+ 0.0` turns −0.0 into 0.0 for tidier output.
             translation: Some((cam.eye + 0.0).to_array()),
             rotation: Some((Vec4::from(camera_rotation(cam)?) + 0.0).to_array()),
+            extensions: None,
         });
-        extras = resolution.map(|(width, height)| SceneExtras { mirage: Resolution { width, height } });
+        if let Some((width, height)) = resolution {
+            (mirage.width, mirage.height) = (Some(width), Some(height));
+        }
     }
+    let any_extras = mirage.width.is_some() || mirage.sky.is_some() || mirage.sun_angular_diameter.is_some();
+    let extras = any_extras.then_some(SceneExtras { mirage });
     let root = Root {
         asset: Asset { version: "2.0", generator: "mirage gen_scenes" },
         extensions_used,
+        extensions: (!lights.is_empty()).then_some(RootExtensions { lights: LightList { lights } }),
         scene: 0,
         scenes: vec![Scene { nodes: (0..nodes.len()).collect(), extras }],
         nodes,
