@@ -134,6 +134,11 @@ impl Builder {
         });
     }
 
+    /// Adds a light that is not a surface.
+    pub fn light(&mut self, l: PunctualDesc) {
+        self.desc.lights.push(l);
+    }
+
     /// Adds a constant sky of radiance `l`.
     pub fn sky(&mut self, l: Vec3) {
         self.desc.lights.push(PunctualDesc::Environment(EnvironmentDesc::Constant(l)));
