@@ -48,6 +48,9 @@ enum Mode {
     /// MTMH, the gather clamped at the chains' target bound and compensated (unbiased with
     /// finite variance: `FrameSettings::compensated`).
     MirCompensated,
+    /// Primary-sample-space MLT over the bidirectional sampler (its default settings, a
+    /// 20 000-path bootstrap).
+    Pssmlt,
 }
 
 fn render(s: &Scene, a: &Accel, mode: Mode, batches: u64, passes: u32) -> Vec<Image> {
@@ -64,6 +67,11 @@ fn render(s: &Scene, a: &Accel, mode: Mode, batches: u64, passes: u32) -> Vec<Im
                 Mode::Bdpt => {
                     let o = BdptOptions { max_depth: 16, only: None, path_edges: None };
                     offline::render_bdpt(s, a, &st, &o, &ProgressBar::hidden()).film.image()
+                }
+                Mode::Pssmlt => {
+                    use mirage::offline::pssmlt::{PssmltSettings, render_pssmlt};
+                    let p = PssmltSettings { bootstrap: 20_000, ..PssmltSettings::default() };
+                    render_pssmlt(s, a, &st, &p, &ProgressBar::hidden()).0.film.image()
                 }
                 Mode::Ir | Mode::Mir | Mode::MirCompensated => {
                     let (kind, settings) = match mode {
@@ -123,7 +131,7 @@ fn assert_value(what: &str, imgs: &[Image], expected: Vec3) {
 fn a_plane_under_a_constant_sky_has_radiance_albedo_times_sky() {
     let (rho, l) = (vec3(0.5, 0.4, 0.3), vec3(0.8, 1.0, 1.2));
     let (s, a) = scene(plane(rho, |b| b.sky(l)), 16, 16);
-    for mode in [Mode::Pt, Mode::Bdpt, Mode::Ir, Mode::Mir] {
+    for mode in [Mode::Pt, Mode::Bdpt, Mode::Ir, Mode::Mir, Mode::Pssmlt] {
         let imgs = render(&s, &a, mode, 8, 64);
         assert_value(&format!("sky {mode:?}"), &imgs, rho * l);
     }
@@ -154,7 +162,7 @@ fn a_plane_facing_the_sun_has_radiance_albedo_times_illuminance_over_pi() {
     let (rho, e) = (vec3(0.6, 0.5, 0.4), vec3(3.0, 2.0, 1.0));
     for diameter in [0.0, 0.53] {
         let (s, a) = scene(plane(rho, |b| b.sun(Vec3::Y, e, diameter)), 16, 16);
-        for mode in [Mode::Pt, Mode::Bdpt, Mode::Ir, Mode::Mir] {
+        for mode in [Mode::Pt, Mode::Bdpt, Mode::Ir, Mode::Mir, Mode::Pssmlt] {
             let imgs = render(&s, &a, mode, 8, 32);
             assert_value(&format!("sun {diameter}° {mode:?}"), &imgs, rho * e / std::f32::consts::PI);
         }
@@ -199,7 +207,7 @@ fn every_mode_agrees_with_pt_on_the_sunlit_room() {
     let pt_imgs = render(&s, &a, Mode::Pt, 8, 512);
     let pt = Estimate::from_batches(&pt_imgs);
     let (pm, pse) = lum(&pt_imgs);
-    for (mode, passes) in [(Mode::Bdpt, 64), (Mode::Ir, 32), (Mode::MirCompensated, 16)] {
+    for (mode, passes) in [(Mode::Bdpt, 64), (Mode::Ir, 32), (Mode::MirCompensated, 16), (Mode::Pssmlt, 64)] {
         let imgs = render(&s, &a, mode, 8, passes);
         let (m, se) = lum(&imgs);
         let z = (m - pm) / (se * se + pse * pse).sqrt();
