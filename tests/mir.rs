@@ -266,21 +266,10 @@ fn parallel_chains_give_the_same_vpls_on_one_and_two_threads() {
     assert_eq!(one, run(2));
 }
 
-/// Eight independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler and
-/// the filter faded out with `fade` ([`Accumulation::filter_fade`]), checked finite, as batches.
+/// `count` independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler
+/// and the filter faded out with `fade` ([`Accumulation::filter_fade`]), checked finite, as
+/// batches.
 fn seed_runs(
-    name: &str,
-    s: &Scene,
-    a: &Accel,
-    sampler: impl Fn() -> Box<dyn VplSampler>,
-    (settings, fade): (&FrameSettings, Option<u32>),
-    seed0: u64,
-) -> Estimate {
-    seed_runs_n(name, s, a, sampler, (settings, fade), seed0, 8)
-}
-
-/// [`seed_runs`] with `count` renders.
-fn seed_runs_n(
     name: &str,
     s: &Scene,
     a: &Accel,
@@ -347,7 +336,7 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
         let settings = FrameSettings { interleave: (4, 4), ..FrameSettings::compensated(256) };
         let run = |kind: VplSamplerArg, kernel: KernelArg, settings: &FrameSettings| {
             let config = SamplerConfig { kernel, ..Default::default() };
-            seed_runs(name, &s, &a, || kind.build_with(&config), (settings, None), 31)
+            seed_runs(name, &s, &a, || kind.build_with(&config), (settings, None), 31, 8)
         };
         for (kind, kernel) in [
             (VplSamplerArg::Mtmh, KernelArg::Bidir),
@@ -375,7 +364,7 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
             let config = SamplerConfig { kernel: KernelArg::Bidir, ..Default::default() };
             let bare_settings = FrameSettings { compensate: false, ..settings };
             let sampler = || VplSamplerArg::Mtmh.build_with(&config);
-            let bare = seed_runs_n(name, &s, &a, sampler, (&bare_settings, None), 31, 16);
+            let bare = seed_runs(name, &s, &a, sampler, (&bare_settings, None), 31, 16);
             let (m, se, ..) = seed_spread(&bare);
             let z = (r - m) / (se * se + se_r * se_r).sqrt();
             eprintln!("{name}: bare clamp mean/pt {:.3} ± {:.3}, z = {z:.2}", m / r, se / r);
@@ -424,7 +413,7 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
         let (r, se_r, ..) = seed_spread(&Estimate::from_batches(&imgs));
         let run = |settings: &FrameSettings| {
             let sampler = || options.vpl_sampler.build_with(&options.sampler);
-            seed_spread(&seed_runs(name, &s, &a, sampler, (settings, options.filter_fade), 7))
+            seed_spread(&seed_runs(name, &s, &a, sampler, (settings, options.filter_fade), 7, 8))
         };
         let (m, se, med, lo, hi) = run(&options.frame);
         let sd = (se * se + se_r * se_r).sqrt();
@@ -453,7 +442,7 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
             // 16 seeds: at 8 a 24 % loss gave z 7.4; more seeds keep the margin.
             let sampler = || options.vpl_sampler.build_with(&options.sampler);
             let bare = FrameSettings { compensate: false, ..options.frame };
-            let (m, se, ..) = seed_spread(&seed_runs_n(name, &s, &a, sampler, (&bare, options.filter_fade), 7, 16));
+            let (m, se, ..) = seed_spread(&seed_runs(name, &s, &a, sampler, (&bare, options.filter_fade), 7, 16));
             let z = (r - m) / (se * se + se_r * se_r).sqrt();
             eprintln!("{name}: uncompensated mean/pt {:.4} ± {:.4}, z = {z:.2}", m / r, se / r);
             assert!(z > 3.0, "{name}: without compensation the default render should be darker (z = {z:.2})");
