@@ -92,7 +92,7 @@ fn main() {
         // P_c against pt and bdpt on P_c's domain (paths of 2..=max_light + 1 edges).
         let n: usize = arg(8, "1000000").parse().unwrap();
         let dist = s.lights.distribution.clone();
-        let ctx = Context { scene: &s, accel: &a, camera: &s.camera, light_choice: &dist, max_light: 16 };
+        let ctx = Context { scene: &s, accel: &a, camera: &s.camera, light_choice: &dist, max_light: 16, screen: None };
         let npix = s.camera.pixel_count() as f64;
         let mut rays = RayStats::default();
         for (label, pss) in [("bidir", false), ("pss", true)] {

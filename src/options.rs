@@ -174,7 +174,7 @@ impl GatherArgs {
 }
 
 /// Settings of the samplers beyond their kind.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SamplerConfig {
     /// Longest light sub-path (vertices) for SIR-style samplers.
     pub max_depth: u32,
@@ -190,6 +190,10 @@ pub struct SamplerConfig {
     pub pc_samples: usize,
     /// MIR: camera probes per batch estimating each VPL's camera response P′ (K).
     pub probes: usize,
+    /// MIR: continue the last frame's chains while the camera stands still.
+    pub carry_chains: bool,
+    /// MIR: share of the screen guide in camera ends and probes (0: uniform).
+    pub guide: f64,
 }
 
 impl Default for SamplerConfig {
@@ -202,6 +206,8 @@ impl Default for SamplerConfig {
             chains: crate::vpl::metropolis::MirSettings::mtmh().chains,
             pc_samples: crate::vpl::metropolis::MirSettings::mtmh().pc_samples,
             probes: crate::vpl::metropolis::MirSettings::mtmh().probes,
+            carry_chains: crate::vpl::metropolis::MirSettings::mtmh().carry,
+            guide: crate::vpl::metropolis::MirSettings::mtmh().guided_probes,
         }
     }
 }
@@ -243,6 +249,8 @@ impl VplSamplerArg {
             chains: c.chains.max(1),
             pc_samples: c.pc_samples.max(1),
             probes: c.probes.max(1),
+            carry: c.carry_chains,
+            guided_probes: c.guide,
             ..MirSettings::mtmh()
         };
         let chain = if self == VplSamplerArg::Mh { Chain::Mh } else { Chain::Mtmh(c.candidates.max(1)) };
@@ -470,6 +478,19 @@ pub struct RenderArgs {
     /// a VPL seen by few probes takes further batches.
     #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().probes)]
     pub probes: usize,
+    /// mir: continue the last frame's chains while the camera stands still (the paper's
+    /// temporal coherence) instead of starting each frame's chains from fresh picks of the P_c
+    /// samples (drawn ∝ their weight; the default). Fresh picks make frames independent: where
+    /// the chains move between regions of the image only every few thousand states (light
+    /// through small holes), carried chains keep each region's share of VPLs for many frames
+    /// and the image converges slowly
+    #[arg(long)]
+    pub carry_chains: bool,
+    /// mir: share of the camera ends (P_c samples, camera-end mutations) and of the probes
+    /// drawn where the last frame's chains looked on the screen (the rest uniform; every weight
+    /// divides by the mixture's density, so the expectation is unchanged). 0: all uniform
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().guided_probes)]
+    pub guide: f64,
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
@@ -602,8 +623,11 @@ impl RenderArgs {
         if self.candidates == 0 || self.candidates > 1000 {
             return Err(OptionsError(format!("--candidates {} is outside 1…1000", self.candidates)));
         }
-        if self.chains == 0 || self.chains > 64 {
-            return Err(OptionsError(format!("--chains {} is outside 1…64", self.chains)));
+        if self.chains == 0 || self.chains > 4096 {
+            return Err(OptionsError(format!("--chains {} is outside 1…4096", self.chains)));
+        }
+        if !(0.0..=0.9).contains(&self.guide) {
+            return Err(OptionsError(format!("--guide {} is outside 0…0.9", self.guide)));
         }
         if self.pc_samples == 0 || self.pc_samples > 1 << 26 {
             return Err(OptionsError(format!("--pc-samples {} is outside 1…{}", self.pc_samples, 1 << 26)));
@@ -651,6 +675,8 @@ impl RenderArgs {
                 chains: self.chains,
                 pc_samples: self.pc_samples,
                 probes: self.probes,
+                carry_chains: self.carry_chains,
+                guide: self.guide,
             },
             frame: crate::frame::FrameSettings {
                 max_specular: 8,

@@ -43,7 +43,7 @@ fn camera_power_matches_the_path_traced_image_luminance() {
     let reference = pt(&s, &a, 256, 1, Some((2, max_light as u32 + 1)));
     let total = reference.mean_luminance() * (64.0 * 64.0);
     let dist: Distribution1D = s.lights.distribution.clone();
-    let ctx = Context { scene: &s, accel: &a, camera: &s.camera, light_choice: &dist, max_light };
+    let ctx = Context { scene: &s, accel: &a, camera: &s.camera, light_choice: &dist, max_light, screen: None };
     let mut rays = RayStats::default();
     let (pc_bidir, _) = estimate_pc(&Bidirectional::default(), &ctx, 200_000, 3, &mut rays);
     let (pc_pss, _) = estimate_pc(&PrimarySample::default(), &ctx, 100_000, 4, &mut rays);
@@ -240,30 +240,39 @@ fn light_through_a_tiny_hole_yields_vpls_or_a_truncation_report() {
 }
 
 /// The chains run in parallel, but the chain count, not the thread count, fixes the result:
-/// three consecutive runs (the chains continue between them, as in the viewer) give bit-identical
-/// VPL sets on one and on two threads.
+/// three consecutive runs give bit-identical VPL sets on one and on two threads, with the
+/// default 64 chains started afresh each run and with two chains carried from run to run (as
+/// `--carry-chains` does in the viewer), where the screen guide and the P_c sample count also
+/// pass from one run to the next.
 #[test]
 fn parallel_chains_give_the_same_vpls_on_one_and_two_threads() {
     let (s, a) = scene(builtin::cornell(), 64, 64);
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| {
-            let settings = MirSettings { pc_samples: 512, probes: 256, ..MirSettings::mtmh() };
-            assert_eq!(settings.chains, 2);
-            let mut mir = Mir::new(Bidirectional::default(), settings);
-            (0..3u64)
-                .map(|seed| {
-                    let (set, _) = mir.sample(&s, &a, &s.camera, 64, seed);
-                    let bits = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
-                    (bits(&set.position), bits(&set.radiance), set.count.clone(), set.group.clone())
-                })
-                .collect::<Vec<_>>()
-        })
-    };
-    let one = run(1);
-    // Not vacuous: every run gave VPLs (about 64; the count varies with the chains' moves).
-    assert!(one.iter().all(|(p, ..)| p.len() >= 3 * 16), "{:?}", one.iter().map(|r| r.0.len() / 3).collect::<Vec<_>>());
-    assert_eq!(one, run(2));
+    let defaults = MirSettings::mtmh();
+    assert_eq!((defaults.chains, defaults.carry), (64, false));
+    for settings in [
+        MirSettings { pc_samples: 512, probes: 256, ..MirSettings::mtmh() },
+        MirSettings { pc_samples: 512, probes: 256, chains: 2, carry: true, ..MirSettings::mtmh() },
+    ] {
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut mir = Mir::new(Bidirectional::default(), settings.clone());
+                (0..3u64)
+                    .map(|seed| {
+                        let (set, _) = mir.sample(&s, &a, &s.camera, 64, seed);
+                        let bits =
+                            |v: &[Vec3]| v.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+                        (bits(&set.position), bits(&set.radiance), set.count.clone(), set.group.clone())
+                    })
+                    .collect::<Vec<_>>()
+            })
+        };
+        let one = run(1);
+        // Not vacuous: every run gave VPLs (about 64; the count varies with the chains' moves).
+        let counts: Vec<usize> = one.iter().map(|r| r.0.len() / 3).collect();
+        assert!(counts.iter().all(|&c| c >= 16), "{} chains: {counts:?}", settings.chains);
+        assert_eq!(one, run(2), "{} chains", settings.chains);
+    }
 }
 
 /// `count` independent 16-frame renders (seeds `seed0 + 1000·b`), each with a fresh sampler

@@ -63,6 +63,7 @@ use rayon::prelude::*;
 
 use super::cdf::light_cdf;
 use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample, Spare};
+use super::screen::{ProbeDensity, ScreenGuide};
 use super::set::{Vpl, VplSet};
 use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
@@ -101,10 +102,18 @@ pub enum StopRule {
 pub struct MirSettings {
     /// MH or MTMH (default 10 candidates).
     pub chain: Chain,
-    /// Independent samples estimating P_c (N).
+    /// Independent samples estimating P_c (N), at least; a run takes up to four times as many
+    /// when the previous run's P̂_c had a relative standard error above
+    /// [`Self::pc_target_error`] (N decided before the run, so P̂_c keeps its expectation).
     pub pc_samples: usize,
+    /// Relative standard error of P̂_c the sample count adapts to.
+    pub pc_target_error: f64,
     /// Camera probes per batch estimating each VPL's camera response (K).
     pub probes: usize,
+    /// Share of each probe batch placed ∝ where the chains' camera vertices fell (the rest is
+    /// stratified over the image), and whether the bidirectional kernel's camera ends follow
+    /// the previous run's [`ScreenGuide`]; see [`super::screen`]. 0: both uniform.
+    pub guided_probes: f64,
     /// Probe batches available; a VPL seen by fewer than `min_probe_hits` probes of the first
     /// batches is measured with the next batch, up to this many.
     pub probe_batches: usize,
@@ -123,6 +132,9 @@ pub struct MirSettings {
     pub max_steps_per_vpl: usize,
     /// When a run stops.
     pub stop: StopRule,
+    /// Continue each chain from its last state while the camera stands still (else every run
+    /// starts its chains from fresh picks of the P_c samples).
+    pub carry: bool,
     /// Independent chains run side by side (in parallel), each giving ⌈m/chains⌉ or ⌊m/chains⌋
     /// of the m locations. Their pooled states estimate the same target, so the normalisation
     /// is unchanged; the chain count, not the thread count, fixes the result.
@@ -135,7 +147,9 @@ impl MirSettings {
         MirSettings {
             chain: Chain::Mtmh(10),
             pc_samples: 4096,
+            pc_target_error: 0.05,
             probes: 1024,
+            guided_probes: 0.5,
             probe_batches: 16,
             min_probe_hits: 256,
             visibility_samples: 256,
@@ -143,7 +157,8 @@ impl MirSettings {
             light_cdf: false,
             max_steps_per_vpl: 64,
             stop: StopRule::States,
-            chains: 2,
+            carry: false,
+            chains: 64,
         }
     }
 
@@ -158,6 +173,10 @@ impl MirSettings {
 pub struct ChainReport {
     /// Estimated camera power P_c (sum over pixels of luminance).
     pub pc: f64,
+    /// Samples P̂_c took.
+    pub pc_samples: usize,
+    /// P̂_c's relative standard error, from its samples.
+    pub pc_error: f64,
     /// Chain states n.
     pub states: u64,
     /// Distinct locations m.
@@ -187,6 +206,10 @@ pub struct Mir<K: MutationKernel> {
     cdf: Option<(Camera, Distribution1D)>,
     move_rate: f64,
     runs: u64,
+    /// Where the last run's camera vertices fell, guiding this run's camera ends.
+    guide: Option<ScreenGuide>,
+    /// P_c samples of the next run (see [`MirSettings::pc_samples`]).
+    pc_next: usize,
     /// Report of the last call.
     pub last: ChainReport,
 }
@@ -207,6 +230,8 @@ impl<K: MutationKernel> Mir<K> {
             cdf: None,
             move_rate: 0.5,
             runs: 0,
+            guide: None,
+            pc_next: 0,
             last: ChainReport::default(),
         }
     }
@@ -233,12 +258,13 @@ pub fn estimate_pc<K: MutationKernel>(
     seed: u64,
     stats: &mut RayStats,
 ) -> (f64, Option<PathState>) {
-    let (pc, picks) = estimate_pc_picks(kernel, ctx, n, 1, seed, stats);
+    let (pc, picks, _) = estimate_pc_picks(kernel, ctx, n, 1, seed, stats);
     (pc, picks.into_iter().next())
 }
 
 /// [`estimate_pc`] with `picks` independent draws ∝ weight (none when P_c = 0): the starting
-/// states of that many chains.
+/// states of that many chains; and the estimate's relative standard error (from the weights'
+/// sample variance; 0 when P_c = 0).
 pub fn estimate_pc_picks<K: MutationKernel>(
     kernel: &K,
     ctx: &Context,
@@ -246,7 +272,7 @@ pub fn estimate_pc_picks<K: MutationKernel>(
     picks: usize,
     seed: u64,
     stats: &mut RayStats,
-) -> (f64, Vec<PathState>) {
+) -> (f64, Vec<PathState>, f64) {
     // Only the weights are kept: a chosen sample is drawn again from its own stream (the same
     // state, bit for bit). Keeping all n states cost an allocation and a copy of each path
     // when a still camera's chains continue and pick none.
@@ -264,8 +290,11 @@ pub fn estimate_pc_picks<K: MutationKernel>(
         *stats += r.1;
     }
     if !(total > 0.0) {
-        return (0.0, Vec::new());
+        return (0.0, Vec::new(), 0.0);
     }
+    let mean = total / n as f64;
+    let var = results.iter().map(|r| (r.0 - mean).powi(2)).sum::<f64>() / (n as f64 - 1.0).max(1.0);
+    let rel_se = (var / n as f64).sqrt() / mean;
     // A sample has a positive weight exactly when it has a state.
     let chosen = (0..picks as u64)
         .filter_map(|j| {
@@ -284,7 +313,7 @@ pub fn estimate_pc_picks<K: MutationKernel>(
             chosen.and_then(|i| kernel.independent(ctx, &mut stream(i as u64), &mut RayStats::default()).0)
         })
         .collect();
-    (total / n as f64, chosen)
+    (mean, chosen, rel_se)
 }
 
 /// What one chain produced in a run.
@@ -298,6 +327,8 @@ struct ChainRun {
     /// The chain hit its step bound before its share of locations.
     truncated: bool,
     rays: RayStats,
+    /// Image position of every state's camera vertex (for [`ProbeDensity`]).
+    rasters: Vec<glam::Vec2>,
 }
 
 /// Runs one chain from `x` for `m` locations (or `fixed_states` states, see [`StopRule`]).
@@ -318,7 +349,9 @@ fn run_chain<K: MutationKernel>(
     let mut truncated = false;
     let mut n = 0u64;
     let mut spare = Spare::default();
+    let mut rasters = Vec::with_capacity(fixed_states.min(max_states) as usize);
     loop {
+        rasters.push(x.raster);
         match locations.last_mut() {
             Some((s, k)) if s.vpl.position == x.vpl.position && s.vpl.normal == x.vpl.normal => *k += 1,
             _ => {
@@ -339,7 +372,7 @@ fn run_chain<K: MutationKernel>(
         x = next;
     }
     // (Locations rule: the last state opened location m + 1 and is not counted.)
-    ChainRun { locations, proposed, accepted, last: x, truncated, rays }
+    ChainRun { locations, proposed, accepted, last: x, truncated, rays, rasters }
 }
 
 /// One MH or MTMH transition from `x`; returns the next state and whether a move was accepted.
@@ -434,64 +467,61 @@ pub fn step<K: MutationKernel>(
     }
 }
 
-/// K camera probes: first surfaces of stratified camera rays (the §5.5 radiance pass). Returns
-/// the receivers and the number of rays traced (misses and specular hits count as zero response).
-fn probes(ctx: &Context, k: usize, seed: u64, parallel: bool) -> ProbeBatch {
-    let side = (k as f64).sqrt().ceil().max(1.0) as usize;
+/// One batch of camera probes placed by `density`: first surfaces of camera rays (the §5.5
+/// radiance pass). Returns the receivers, their pixels and balance weights, and the number of
+/// rays traced (misses and specular hits count as zero response).
+fn probes(ctx: &Context, density: &ProbeDensity, seed: u64, parallel: bool) -> ProbeBatch {
     let cam = ctx.camera;
     let probe = |i: usize| {
         let mut st = RayStats::default();
         let mut s = IndependentSampler::for_stream(seed, TAG_PROBE, i as u64);
-        let (gx, gy) = ((i % side) as f32, (i / side) as f32);
-        let raster = glam::vec2(
-            (gx + s.next_1d()) / side as f32 * cam.width as f32,
-            (gy + s.next_1d()) / side as f32 * cam.height as f32,
-        );
+        let raster = density.raster(i, [s.next_1d(), s.next_1d(), s.next_1d(), s.next_1d()]);
         let c = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), &mut st);
         let pixel = [(raster.x as u32).min(cam.width - 1), (raster.y as u32).min(cam.height - 1)];
-        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver), pixel)), st)
+        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver), pixel, density.weight(raster))), st)
     };
-    /// A probe's receiver, prepared, and its pixel, when its ray found a surface.
-    type Probe = Option<(Receiver, Prepared, [u32; 2])>;
-    let traced: Vec<(Probe, RayStats)> = if parallel {
-        (0..side * side).into_par_iter().map(probe).collect()
-    } else {
-        (0..side * side).map(probe).collect()
-    };
-    let cell = [cam.width.div_ceil(side as u32), cam.height.div_ceil(side as u32)];
+    /// A probe's receiver, prepared, its pixel and its weight, when its ray found a surface.
+    type Probe = Option<(Receiver, Prepared, [u32; 2], f32)>;
+    let n = density.count();
+    let traced: Vec<(Probe, RayStats)> =
+        if parallel { (0..n).into_par_iter().map(probe).collect() } else { (0..n).map(probe).collect() };
     let mut batch = ProbeBatch {
         receivers: Vec::with_capacity(traced.len()),
         pixels: Vec::with_capacity(traced.len()),
-        cell,
-        rays: side * side,
+        weights: Vec::with_capacity(traced.len()),
+        cell: density.cell(),
+        rays: n,
         stats: RayStats::default(),
     };
     for (r, st) in traced {
         batch.stats += st;
-        if let Some((r, p, pixel)) = r {
+        if let Some((r, p, pixel, w)) = r {
             batch.receivers.push((r, p));
             batch.pixels.push(pixel);
+            batch.weights.push(w);
         }
     }
     batch
 }
 
 /// A VPL location's probe sums: estimates of Σ y and Σ y² over its probes (y the probe's
-/// visible response), the probes traced, an estimate of the probes that see it, and the pixel
-/// rectangle of the probes whose shadow ray found it visible (widened by a probe cell each
-/// side; `[u32::MAX, u32::MAX, 0, 0]` while none did).
+/// visible response times its balance weight), the probes traced, estimates of the probes that
+/// see it and of the weighted count (whose mean over the probes traced is the share of the
+/// image's pixels that see it), and the pixel rectangle of the probes whose shadow ray found
+/// it visible (widened by a probe cell each side; `[u32::MAX, u32::MAX, 0, 0]` while none did).
 #[derive(Clone, Copy, Debug)]
 struct ProbeSums {
     sum: f64,
     sum2: f64,
     rays_used: usize,
     hits: f64,
+    area: f64,
     rect: [u32; 4],
 }
 
 impl Default for ProbeSums {
     fn default() -> Self {
-        ProbeSums { sum: 0.0, sum2: 0.0, rays_used: 0, hits: 0.0, rect: [u32::MAX, u32::MAX, 0, 0] }
+        ProbeSums { sum: 0.0, sum2: 0.0, rays_used: 0, hits: 0.0, area: 0.0, rect: [u32::MAX, u32::MAX, 0, 0] }
     }
 }
 
@@ -551,12 +581,13 @@ fn visibility_samples(lit: &[(u32, f32)], n: usize, xi: f64, mut trace: impl FnM
 }
 
 impl ProbeSums {
-    /// Adds an unblocked visibility sample; its probe lies at `pixel`, in probe cells of
-    /// `cell` pixels.
-    fn add(&mut self, v: VisibilitySample, pixel: [u32; 2], cell: [u32; 2]) {
+    /// Adds an unblocked visibility sample; its probe lies at `pixel` with balance weight
+    /// `weight`, in probe cells of `cell` pixels.
+    fn add(&mut self, v: VisibilitySample, pixel: [u32; 2], weight: f32, cell: [u32; 2]) {
         self.sum += v.sum;
         self.sum2 += v.sum2;
         self.hits += v.hits;
+        self.area += v.hits * weight as f64;
         let r = &mut self.rect;
         r[0] = r[0].min(pixel[0].saturating_sub(cell[0]));
         r[1] = r[1].min(pixel[1].saturating_sub(cell[1]));
@@ -591,7 +622,9 @@ struct ProbeBatch {
     receivers: Vec<(Receiver, Prepared)>,
     /// The pixel of each of them.
     pixels: Vec<[u32; 2]>,
-    /// The probes' stratification cell, in pixels.
+    /// The balance weight of each of them ([`ProbeDensity::weight`]).
+    weights: Vec<f32>,
+    /// The uniform probes' stratification cell, in pixels.
     cell: [u32; 2],
     /// Camera rays traced (the denominator of the batch's mean).
     rays: usize,
@@ -626,15 +659,30 @@ impl<K: MutationKernel> Mir<K> {
         let t0 = Instant::now();
         let mut rays = RayStats::default();
         let dist = self.light_choice(scene, accel, camera, &mut rays);
-        let ctx = Context { scene, accel, camera, light_choice: &dist, max_light: self.settings.max_light.max(1) };
+        let guide = self.guide.take().filter(|_| self.settings.guided_probes > 0.0);
+        let ctx = Context {
+            scene,
+            accel,
+            camera,
+            light_choice: &dist,
+            max_light: self.settings.max_light.max(1),
+            screen: guide.as_ref(),
+        };
         let mut report = ChainReport::default();
         let chains = self.settings.chains.clamp(1, m.max(1));
-        let (pc, fresh) =
-            estimate_pc_picks(&self.kernel, &ctx, self.settings.pc_samples.max(1), chains, seed, &mut rays);
+        let n_min = self.settings.pc_samples.max(1);
+        let n_pc = self.pc_next.clamp(n_min, 4 * n_min);
+        let (pc, fresh, rel_se) = estimate_pc_picks(&self.kernel, &ctx, n_pc, chains, seed, &mut rays);
         report.pc = pc;
+        report.pc_samples = n_pc;
+        report.pc_error = rel_se;
+        // The sample count the next run needs for the target error (1/√N).
+        let target = self.settings.pc_target_error.max(1e-6);
+        self.pc_next =
+            (n_pc as f64 * (rel_se / target).powi(2)).ceil().clamp(n_min as f64, 4.0 * n_min as f64) as usize;
         // Continue the previous chains unless the camera jumped; re-evaluate them for this
         // camera. A chain without a state starts from a fresh pick.
-        let mut carried: Vec<Option<PathState>> = if self.jumped {
+        let mut carried: Vec<Option<PathState>> = if self.jumped || !self.settings.carry {
             Vec::new()
         } else {
             std::mem::take(&mut self.states).iter().map(|x| self.kernel.reevaluate(&ctx, x, &mut rays)).collect()
@@ -649,7 +697,7 @@ impl<K: MutationKernel> Mir<K> {
             self.last = report;
             let warnings = vec![format!(
                 "no light reaches what the camera sees through any path the chain samples (P_c = 0 from {} samples): the image shows only emitters seen directly",
-                self.settings.pc_samples
+                n_pc
             )];
             return (VplSet::default(), SamplerStats { time: t0.elapsed(), rays, warnings, ..Default::default() });
         }
@@ -683,7 +731,9 @@ impl<K: MutationKernel> Mir<K> {
             .collect();
         let (mut proposed, mut accepted) = (0u64, 0u64);
         let mut locations: Vec<(PathState, u64)> = Vec::with_capacity(m);
+        let mut rasters = Vec::new();
         for run in runs {
+            rasters.extend(run.rasters);
             proposed += run.proposed;
             accepted += run.accepted;
             rays += run.rays;
@@ -705,10 +755,11 @@ impl<K: MutationKernel> Mir<K> {
         // and re-enter its own initialisation).
         let batches = self.settings.probe_batches.max(1);
         let batch_seed = |b: usize| seed ^ (b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        let k = self.settings.probes.max(1);
+        let next_guide = ScreenGuide::new(camera, &rasters);
+        let density = ProbeDensity::new(camera, self.settings.probes, self.settings.guided_probes, next_guide.clone());
         let probe_sets: Vec<OnceLock<ProbeBatch>> = (0..batches).map(|_| OnceLock::new()).collect();
-        let _ = probe_sets[0].set(probes(&ctx, k, batch_seed(0), true));
-        let batch = |b: usize| probe_sets[b].get_or_init(|| probes(&ctx, k, batch_seed(b), false));
+        let _ = probe_sets[0].set(probes(&ctx, &density, batch_seed(0), true));
+        let batch = |b: usize| probe_sets[b].get_or_init(|| probes(&ctx, &density, batch_seed(b), false));
         let npix = camera.pixel_count() as f64;
         let nl = scene.lights.list.len();
         report.power_by_light = vec![0.0; nl];
@@ -743,17 +794,20 @@ impl<K: MutationKernel> Mir<K> {
                     if active == 0 {
                         break;
                     }
-                    let ProbeBatch { receivers, pixels, cell, rays: count, .. } = batch(b);
+                    let ProbeBatch { receivers, pixels, weights, cell, rays: count, .. } = batch(b);
                     lit.iter_mut().for_each(Vec::clear);
                     for (i, (r, pt)) in receivers.iter().enumerate() {
                         lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c| {
-                            let y = luminance(c);
+                            let y = luminance(c) * weights[i];
                             if y > 0.0 {
                                 lit[j].push((i as u32, y));
                             }
                         });
                     }
-                    let mut add = |v: VisibilitySample| sums[v.lane as usize].add(v, pixels[v.probe as usize], *cell);
+                    let mut add = |v: VisibilitySample| {
+                        let i = v.probe as usize;
+                        sums[v.lane as usize].add(v, pixels[i], weights[i], *cell)
+                    };
                     for j in (0..chunk.len()).filter(|j| active >> j & 1 != 0) {
                         let xi = Pcg32::from_words(&[seed, TAG_VISIBILITY, (8 * c + j) as u64, b as u64]).next_f64();
                         let target = set.position[j];
@@ -789,7 +843,7 @@ impl<K: MutationKernel> Mir<K> {
         for (sums, st) in &measured {
             rays += *st;
             for p in sums {
-                footprints.push(((p.hits / p.rays_used.max(1) as f64) as f32, p.rect));
+                footprints.push(((p.area / p.rays_used.max(1) as f64) as f32, p.rect));
                 let (i, (s, k)) = (scaled.len(), &locations[scaled.len()]);
                 scaled.push(p.scaled(s.vpl, i as u32, *k, *k as f64 * pc / n_states as f64, npix));
             }
@@ -820,7 +874,8 @@ impl<K: MutationKernel> Mir<K> {
         }
         set.groups = locations.len() as u32;
         let mut warnings = Vec::new();
-        if report.truncated {
+        // A few of many chains stuck at their bound cost a few locations, not worth a warning.
+        if report.truncated && report.locations * 10 < m * 9 {
             warnings.push(format!(
                 "the chains found only {} of {m} VPL locations within their bound of {} states ({} per VPL): light reaches the camera through very few paths",
                 report.locations,
@@ -832,13 +887,14 @@ impl<K: MutationKernel> Mir<K> {
             time: t0.elapsed(),
             candidates: n_states,
             kept: set.len(),
-            paths: self.settings.pc_samples as u64,
+            paths: n_pc as u64,
             accepted,
             proposed,
             rays,
             warnings,
         };
         self.last = report;
+        self.guide = next_guide;
         (set, stats)
     }
 }
@@ -858,12 +914,15 @@ impl<K: MutationKernel> VplSampler for Mir<K> {
     fn reset(&mut self) {
         self.states.clear();
         self.jumped = true;
+        self.guide = None;
+        self.pc_next = 0;
     }
 
     fn camera_moved(&mut self, jumped: bool) {
         if jumped {
             self.jumped = true;
             self.cdf = None;
+            self.guide = None;
         }
     }
 }

@@ -17,6 +17,7 @@
 use glam::{Vec2, vec2};
 
 use super::mirpath::{CameraEnd, camera_end, contribution, extend_light, log_pdf_range, target, vertex_vpl};
+use super::screen::ScreenGuide;
 use super::set::Vpl;
 use crate::accel::Accel;
 use crate::path::{Vertex, light_subpath_with};
@@ -36,6 +37,9 @@ pub struct Context<'a> {
     pub light_choice: &'a Distribution1D,
     /// Longest light sub-path (vertices).
     pub max_light: usize,
+    /// Where the bidirectional kernel draws camera ends (uniform when `None`): the mixture of
+    /// [`ScreenGuide::sample_mixture`], its density in every weight and proposal density.
+    pub screen: Option<&'a ScreenGuide>,
 }
 
 impl Context<'_> {
@@ -151,10 +155,20 @@ pub trait MutationKernel: Send + Sync {
     fn reevaluate(&self, ctx: &Context, x: &PathState, stats: &mut RayStats) -> Option<PathState>;
 }
 
-/// A uniform image position and lens sample.
+/// An image position (uniform, or from the context's [`ScreenGuide`] mixture) and a lens
+/// sample.
 fn camera_sample(ctx: &Context, rng: &mut Pcg32) -> (Vec2, Vec2) {
     let c = ctx.camera;
-    (vec2(rng.next_f32() * c.width as f32, rng.next_f32() * c.height as f32), vec2(rng.next_f32(), rng.next_f32()))
+    let raster = match ctx.screen {
+        None => vec2(rng.next_f32() * c.width as f32, rng.next_f32() * c.height as f32),
+        Some(g) => g.sample_mixture([rng.next_f32(), rng.next_f32(), rng.next_f32()]),
+    };
+    (raster, vec2(rng.next_f32(), rng.next_f32()))
+}
+
+/// ln of the density [`camera_sample`] draws `raster` with, over the uniform density.
+fn ln_camera_factor(ctx: &Context, raster: Vec2) -> f64 {
+    ctx.screen.map_or(0.0, |g| (g.mixture_factor(raster) as f64).ln())
 }
 
 /// Geometric length distribution on 1..=kmax with ratio ½: ln p(k).
@@ -290,7 +304,7 @@ impl MutationKernel for Bidirectional {
         let j = terms.iter().find(|t| t.1 > pick).unwrap_or(terms.last().expect("total > 0")).0;
         light.truncate(j + 1);
         let x = Self::build(ctx, raster, lens, cam, light, stats);
-        (x, total * ctx.pixels())
+        (x, total * ctx.pixels() / (ln_camera_factor(ctx, raster)).exp())
     }
 
     fn propose(
@@ -305,7 +319,7 @@ impl MutationKernel for Bidirectional {
         if rng.next_f64() < self.p_camera {
             let (raster, lens) = camera_sample(ctx, rng);
             let Some(cam) = camera_end(ctx.scene, ctx.accel, ctx.camera, raster, lens, stats) else { return invalid };
-            let log_g = self.p_camera.ln() + cam.log_pdf;
+            let log_g = self.p_camera.ln() + cam.log_pdf + ln_camera_factor(ctx, raster);
             let mut light = spare.light();
             light.extend_from_slice(&x.light);
             let state = Self::build(ctx, raster, lens, cam, light, stats);
@@ -331,7 +345,7 @@ impl MutationKernel for Bidirectional {
         let j = Self::common_prefix(&to.light, &from.light);
         if j == to.light.len() && j == from.light.len() {
             // Same light sub-path: a camera-end regeneration.
-            return self.p_camera.ln() + to.cam.log_pdf;
+            return self.p_camera.ln() + to.cam.log_pdf + ln_camera_factor(ctx, to.raster);
         }
         if to.raster != from.raster || to.lens != from.lens || j >= from.light.len() {
             return f64::NEG_INFINITY;
