@@ -5,13 +5,19 @@
 //! Per call of [`Mir::sample`]:
 //! 1. **P_c** (§5.1): N independent bidirectional samples of the kernel's own generator; their
 //!    mean weight estimates P_c, and each chain's first state is drawn among them ∝ weight
-//!    (removing start-up bias, Veach & Guibas 1997). When the camera has not jumped, a chain
-//!    continues from its last state instead (temporal coherence, DESIGN §3.6).
+//!    (removing start-up bias, Veach & Guibas 1997: P̂_c times the share of picks in any region
+//!    is an unbiased estimate of that region's part of P_c, and MH steps keep it so). The
+//!    camera ends follow the previous run's [`ScreenGuide`] (see [`super::screen`]), and N
+//!    adapts to P̂_c's own error ([`MirSettings::pc_samples`]). With
+//!    [`MirSettings::carry`] (off by default), a chain continues from its last state while the
+//!    camera has not jumped (the paper's temporal coherence).
 //! 2. **Chains** (§5.2, §6.1): MH, or MTMH with p candidates and λ(u, v) = [g(u|v) g(v|u)]⁻¹, so
-//!    that w(u, v) = π(v) / g(v|u). [`MirSettings::chains`] independent chains (2 by default,
-//!    one per core here) run in parallel, each for its share of the m locations; their states
-//!    all sample the same target, so pooled they are one sample of it (the paper runs one chain;
-//!    one serial chain left a core idle for half of an interactive frame's VPL stage).
+//!    that w(u, v) = π(v) / g(v|u). [`MirSettings::chains`] independent chains (64 by default)
+//!    run in parallel, each for its share of the m locations; their states all sample the
+//!    same target, so pooled they are one sample of it (the paper runs one chain). Many short
+//!    chains from fresh picks, rather than two long ones carried from frame to frame, because
+//!    on scenes whose light reaches the image through small openings the chains move between
+//!    regions of the image only every few thousand states (table below).
 //! 3. **Geographical VPLs** (§5.3): consecutive states of a chain with the same x_v add to its
 //!    count k; a chain runs for a state count fixed from earlier runs' move rate (or until its
 //!    share of locations exists, or a documented step bound is hit); n = number of states of
@@ -48,6 +54,24 @@
 //! | VPLs no probe saw (dropped) | 0.02 % | 0.4–0.7 % | 0 | left: below the noise; [`ChainReport::dropped_share`] reports it |
 //! | Light sub-paths longer than `max_light` = 16 vertices, first-vertex restrictions | not measurable (P_c from 10⁶ samples agrees with pt restricted to ≤ 17 edges within 1–2 %) | | | — |
 //!
+//! # Where the error went (issue 19, light-box-thick)
+//!
+//! At the paper's workload (1024×768, 1024 VPLs a frame, 16 frames, excess nMSE against a
+//! 1024-spp reference in two halves; 3 seeds), unbiased MIR's error on `light-box-thick` was
+//! 18.5 [7.7–131] against SIR's 7.5–9.1, and 97 % of it lay in 185 pixels (0.024 % of the
+//! image) that look through two 6-cm holes at the lamp-lit inside of the box and hold 25 % of
+//! its light. What went wrong there, and what changed:
+//!
+//! | cause | measured | fix |
+//! |---|---|---|
+//! | Two chains carried from frame to frame move between the holes and the rest of the image only every few thousand states, so each frame's share of states in the holes swung 0–100 % (the true share of P_c there is 17.5 %, from 2·10⁶ independent samples; 64 carried chains drifted between 10 and 64 % over 64 frames) | restarted from P_c picks and run 16 000 states, the same chains give 16.3 % ± 2.6 %: not a bias, slow mixing | 64 chains, each frame started from fresh picks ([`MirSettings::carry`] off): frames are independent, and the picks' share in the holes has a spread of ≈ 5 % |
+//! | Uniform camera ends put about 1 of the 4096 P_c samples in the holes: P̂_c's spread was 42 % a frame, and the picks rarely started a chain there (restarted chains put 8 % of their states there instead of 17.5 %) | | the bidirectional kernel's camera ends come from a 50/50 mixture of a histogram of the last run's camera vertices and the uniform density ([`ScreenGuide`]), divided by the mixture's density in weights and proposal densities; N grows up to 4× when P̂_c's relative error exceeds 5 % (spread 42 % → 20–25 %) |
+//! | Uniform probes met the VPLs that light only the holes 0.24 times per batch of 1024, so their P̂′ rested on a handful of hits over 16 batches | | half of each batch is drawn from the same histogram, balance-weighted ([`super::screen::ProbeDensity`]); on deep-shaft the VPL stage also fell from 120–160 to 50–65 ms (fewer batches needed) |
+//!
+//! After the three, the same measurement: light-box-thick 9.8 [7.3–10.3], deep-shaft 0.48 →
+//! 0.071, ajar-door-thick 1.44 → 1.21, cornell 0.065 → 0.067 (`benches/results/`, issue 19's
+//! paper-workload record).
+//!
 //! With the fixes, MTMH and MH with both kernels agree with pt in image mean and per 8×8 block
 //! on the three scenes over 8 seeds (`tests/mir.rs`,
 //! `compensated_mir_agrees_with_pt_on_the_hard_scenes`), and so does the default render on
@@ -56,21 +80,19 @@
 //! 0.80–0.87 × pt before the path-traced residual, was the same missing residual: 0.995 ±
 //! 0.021 after it over 32 seeds.)
 
-use std::sync::OnceLock;
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use super::cdf::light_cdf;
 use super::mutation::{Bidirectional, Context, MutationKernel, PathState, PrimarySample, Spare};
+use super::normalise::Measure;
 use super::screen::{ProbeDensity, ScreenGuide};
 use super::set::{Vpl, VplSet};
-use super::transfer::Receiver;
 use super::{SamplerStats, VplSampler};
 use crate::accel::Accel;
 use crate::color::luminance;
-use crate::gather::shade::{Prepared, ShadowBatch, VplLanes};
-use crate::sampling::{Distribution1D, IndependentSampler, Pcg32, Sampler};
+use crate::sampling::{Distribution1D, Pcg32};
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 
@@ -239,8 +261,6 @@ impl<K: MutationKernel> Mir<K> {
 
 const TAG_PC: u64 = 0x0050_435f_5341_4d50;
 const TAG_CHAIN: u64 = 0x0043_4841_494e;
-const TAG_PROBE: u64 = 0x0050_524f_4245;
-const TAG_VISIBILITY: u64 = 0x0056_4953_4942;
 
 fn log_sum_exp(v: &[f64]) -> f64 {
     let m = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -467,171 +487,6 @@ pub fn step<K: MutationKernel>(
     }
 }
 
-/// One batch of camera probes placed by `density`: first surfaces of camera rays (the §5.5
-/// radiance pass). Returns the receivers, their pixels and balance weights, and the number of
-/// rays traced (misses and specular hits count as zero response).
-fn probes(ctx: &Context, density: &ProbeDensity, seed: u64, parallel: bool) -> ProbeBatch {
-    let cam = ctx.camera;
-    let probe = |i: usize| {
-        let mut st = RayStats::default();
-        let mut s = IndependentSampler::for_stream(seed, TAG_PROBE, i as u64);
-        let raster = density.raster(i, [s.next_1d(), s.next_1d(), s.next_1d(), s.next_1d()]);
-        let c = super::mirpath::camera_end(ctx.scene, ctx.accel, cam, raster, s.next_2d(), &mut st);
-        let pixel = [(raster.x as u32).min(cam.width - 1), (raster.y as u32).min(cam.height - 1)];
-        (c.map(|c| (c.receiver, Prepared::new(ctx.scene, &c.receiver), pixel, density.weight(raster))), st)
-    };
-    /// A probe's receiver, prepared, its pixel and its weight, when its ray found a surface.
-    type Probe = Option<(Receiver, Prepared, [u32; 2], f32)>;
-    let n = density.count();
-    let traced: Vec<(Probe, RayStats)> =
-        if parallel { (0..n).into_par_iter().map(probe).collect() } else { (0..n).map(probe).collect() };
-    let mut batch = ProbeBatch {
-        receivers: Vec::with_capacity(traced.len()),
-        pixels: Vec::with_capacity(traced.len()),
-        weights: Vec::with_capacity(traced.len()),
-        cell: density.cell(),
-        rays: n,
-        stats: RayStats::default(),
-    };
-    for (r, st) in traced {
-        batch.stats += st;
-        if let Some((r, p, pixel, w)) = r {
-            batch.receivers.push((r, p));
-            batch.pixels.push(pixel);
-            batch.weights.push(w);
-        }
-    }
-    batch
-}
-
-/// A VPL location's probe sums: estimates of Σ y and Σ y² over its probes (y the probe's
-/// visible response times its balance weight), the probes traced, estimates of the probes that
-/// see it and of the weighted count (whose mean over the probes traced is the share of the
-/// image's pixels that see it), and the pixel rectangle of the probes whose shadow ray found
-/// it visible (widened by a probe cell each side; `[u32::MAX, u32::MAX, 0, 0]` while none did).
-#[derive(Clone, Copy, Debug)]
-struct ProbeSums {
-    sum: f64,
-    sum2: f64,
-    rays_used: usize,
-    hits: f64,
-    area: f64,
-    rect: [u32; 4],
-}
-
-impl Default for ProbeSums {
-    fn default() -> Self {
-        ProbeSums { sum: 0.0, sum2: 0.0, rays_used: 0, hits: 0.0, area: 0.0, rect: [u32::MAX, u32::MAX, 0, 0] }
-    }
-}
-
-/// One shadow ray of the normalisation, from a probe to a VPL, and what it adds to the VPL's
-/// [`ProbeSums`] when it is not blocked: `sum` to Σ y, `sum2` to Σ y², `hits` to the probes
-/// that see the VPL.
-#[derive(Clone, Copy, Debug, Default)]
-struct VisibilitySample {
-    lane: u32,
-    probe: u32,
-    sum: f64,
-    sum2: f64,
-    hits: f64,
-}
-
-/// Chooses which of a VPL's lit probes get a shadow ray, and with which weights
-/// ([`VisibilitySample`], lane unset), calling `trace(probe, sample)` in probe order. `lit`
-/// holds the probes with a nonzero unshadowed response u, in probe order.
-///
-/// With at most `n` of them, each is traced with its own response (`sum` u, `sum2` u²,
-/// `hits` 1): Σ u·V exactly, V the visibility. Otherwise n visibility samples are placed ∝ u
-/// by systematic sampling (offset `xi` ∈ [0, 1) times U/n, U = Σ u, then every U/n along the
-/// running sum of u): each sample picks probe i with probability u_i / U, so a probe picked q
-/// times and visible adds q·U/n to the estimate of Σ u·V (`sum`), q·(U/n)·u to that of Σ u²·V
-/// (`sum2`) and q·U/(n u) to that of the visible probes (`hits`), each unbiased; the samples
-/// follow the probes' order, so they are spread over the image as the probes are. A VPL lit
-/// by many probes, most of which see it, then needs n rays instead of one per probe: the
-/// unshadowed response, which carries most of the spread of y between probes, is summed
-/// exactly, and only the visible fraction is sampled.
-fn visibility_samples(lit: &[(u32, f32)], n: usize, xi: f64, mut trace: impl FnMut(u32, VisibilitySample)) {
-    if lit.len() <= n {
-        for &(i, u) in lit {
-            let u = u as f64;
-            trace(i, VisibilitySample { lane: 0, probe: i, sum: u, sum2: u * u, hits: 1.0 });
-        }
-        return;
-    }
-    let total: f64 = lit.iter().map(|&(_, u)| u as f64).sum();
-    let step = total / n as f64;
-    let (mut taken, mut run, mut next) = (0usize, 0.0f64, xi * step);
-    let last = lit.len() - 1;
-    for (k, &(i, u)) in lit.iter().enumerate() {
-        run += u as f64;
-        // Positions (t + xi)·U/n below the running sum fall on this probe; the last probe takes
-        // what rounding left (position n − 1 is below U in exact arithmetic).
-        let mut q = 0usize;
-        while taken < n && (next < run || k == last) {
-            q += 1;
-            taken += 1;
-            next = (taken as f64 + xi) * step;
-        }
-        if q > 0 {
-            let (q, u) = (q as f64, u as f64);
-            trace(i, VisibilitySample { lane: 0, probe: i, sum: q * step, sum2: q * step * u, hits: q * step / u });
-        }
-    }
-}
-
-impl ProbeSums {
-    /// Adds an unblocked visibility sample; its probe lies at `pixel` with balance weight
-    /// `weight`, in probe cells of `cell` pixels.
-    fn add(&mut self, v: VisibilitySample, pixel: [u32; 2], weight: f32, cell: [u32; 2]) {
-        self.sum += v.sum;
-        self.sum2 += v.sum2;
-        self.hits += v.hits;
-        self.area += v.hits * weight as f64;
-        let r = &mut self.rect;
-        r[0] = r[0].min(pixel[0].saturating_sub(cell[0]));
-        r[1] = r[1].min(pixel[1].saturating_sub(cell[1]));
-        r[2] = r[2].max(pixel[0] + cell[0]);
-        r[3] = r[3].max(pixel[1] + cell[1]);
-    }
-
-    /// The VPL `vpl` (location `group`, `k` chain states, power `p_i`) with its radiance scaled
-    /// by P_i / P'_i (module doc); None when no probe saw it or P_i is not finite.
-    fn scaled(&self, vpl: Vpl, group: u32, k: u64, p_i: f64, npix: f64) -> Option<Vpl> {
-        let kk = self.rays_used.max(1) as f64;
-        let mean = self.sum / kk;
-        let response = mean * npix;
-        if !(response > 0.0) || !p_i.is_finite() {
-            return None;
-        }
-        // 1/P' with its second-order bias removed: E[1/X] ≈ 1/μ + σ²/μ³ for the estimate X of
-        // μ, so 1/X − σ̂²/X³ (σ̂² the variance of the mean), never below ½/X.
-        let var_mean = ((self.sum2 / kk - mean * mean).max(0.0) / kk) * npix * npix;
-        let inv = (1.0 / response) * (1.0 - var_mean / (response * response)).max(0.5);
-        let mut v = vpl;
-        v.radiance *= (p_i * inv) as f32;
-        v.count = k as u32;
-        v.group = group;
-        Some(v)
-    }
-}
-
-/// One batch of camera probes.
-struct ProbeBatch {
-    /// The probes that found a receiver, prepared as the gather prepares its pixels.
-    receivers: Vec<(Receiver, Prepared)>,
-    /// The pixel of each of them.
-    pixels: Vec<[u32; 2]>,
-    /// The balance weight of each of them ([`ProbeDensity::weight`]).
-    weights: Vec<f32>,
-    /// The uniform probes' stratification cell, in pixels.
-    cell: [u32; 2],
-    /// Camera rays traced (the denominator of the batch's mean).
-    rays: usize,
-    /// Rays traced building the batch.
-    stats: RayStats,
-}
-
 impl<K: MutationKernel> Mir<K> {
     fn light_choice(&mut self, scene: &Scene, accel: &Accel, camera: &Camera, stats: &mut RayStats) -> Distribution1D {
         if !self.settings.light_cdf {
@@ -747,109 +602,25 @@ impl<K: MutationKernel> Mir<K> {
         self.runs += 1;
         report.states = n_states;
         report.locations = locations.len();
-        // Normalisation: each location's camera response from probe batches (module doc).
-        // Each batch has its own seed, so the result does not depend on which thread traces it.
-        // The first batch is traced in parallel up front; most VPLs are seen by enough of its
-        // probes. Later batches are traced when a VPL first needs them, serially inside the
-        // parallel loop (a parallel initialiser could steal a task that asks for the same batch
-        // and re-enter its own initialisation).
-        let batches = self.settings.probe_batches.max(1);
-        let batch_seed = |b: usize| seed ^ (b as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        // Normalisation: each location's camera response from probe batches (module doc,
+        // [`super::normalise`]); the probes follow where this run's chains looked.
         let next_guide = ScreenGuide::new(camera, &rasters);
         let density = ProbeDensity::new(camera, self.settings.probes, self.settings.guided_probes, next_guide.clone());
-        let probe_sets: Vec<OnceLock<ProbeBatch>> = (0..batches).map(|_| OnceLock::new()).collect();
-        let _ = probe_sets[0].set(probes(&ctx, &density, batch_seed(0), true));
-        let batch = |b: usize| probe_sets[b].get_or_init(|| probes(&ctx, &density, batch_seed(b), false));
+        let measure = Measure {
+            batches: self.settings.probe_batches.max(1),
+            min_hits: self.settings.min_probe_hits,
+            visibility_samples: self.settings.visibility_samples.max(1),
+            g_target: crate::vpl::mirpath::target_g_bound(scene),
+        };
+        let (measured, st) = measure.locations(&ctx, &locations, &density, seed);
+        rays += st;
         let npix = camera.pixel_count() as f64;
-        let nl = scene.lights.list.len();
-        report.power_by_light = vec![0.0; nl];
-        let min_hits = self.settings.min_probe_hits;
-        let vis_samples = self.settings.visibility_samples.max(1);
-        // P' with the chains' own target bound (see `mirpath::TARGET_CLAMP`).
-        let g_target = crate::vpl::mirpath::target_g_bound(scene);
-        // Each location's probe sums, eight locations per pass over the probes (one VPL per
-        // lane of the gather's kernel). A location takes probe batches until enough of its
-        // probes see it (or all batches are used); its sums run in probe order, as if it were
-        // measured alone.
-        let measured: Vec<(Vec<ProbeSums>, RayStats)> = locations
-            .par_chunks(8)
-            .enumerate()
-            .map(|(c, chunk)| {
-                let mut st = RayStats::default();
-                let mut set = VplSet::default();
-                for (s, _) in chunk {
-                    set.push(s.vpl);
-                }
-                let lanes = VplLanes::new(&set);
-                let mut sums = vec![ProbeSums::default(); chunk.len()];
-                // Neighbouring probes are blocked by the same leaf: a shadow cache per VPL.
-                let mut hints = [crate::accel::single::NO_OCCLUDER; 8];
-                // Shadow rays set up eight at a time; an unblocked one adds its weights to its
-                // VPL's sums (see `VisibilitySample`).
-                let mut rays = ShadowBatch::<VisibilitySample>::new();
-                // Each lane's probes of the current batch that its VPL lights, unshadowed.
-                let mut lit: [Vec<(u32, f32)>; 8] = Default::default();
-                let mut active = (1u32 << chunk.len()) - 1;
-                for b in 0..batches {
-                    if active == 0 {
-                        break;
-                    }
-                    let ProbeBatch { receivers, pixels, weights, cell, rays: count, .. } = batch(b);
-                    lit.iter_mut().for_each(Vec::clear);
-                    for (i, (r, pt)) in receivers.iter().enumerate() {
-                        lanes.each_unshadowed(&set, pt, r, active, g_target, |j, c| {
-                            let y = luminance(c) * weights[i];
-                            if y > 0.0 {
-                                lit[j].push((i as u32, y));
-                            }
-                        });
-                    }
-                    let mut add = |v: VisibilitySample| {
-                        let i = v.probe as usize;
-                        sums[v.lane as usize].add(v, pixels[i], weights[i], *cell)
-                    };
-                    for j in (0..chunk.len()).filter(|j| active >> j & 1 != 0) {
-                        let xi = Pcg32::from_words(&[seed, TAG_VISIBILITY, (8 * c + j) as u64, b as u64]).next_f64();
-                        let target = set.position[j];
-                        visibility_samples(&lit[j], vis_samples, xi, |i, sample| {
-                            let pt = &receivers[i as usize].1;
-                            let sample = VisibilitySample { lane: j as u32, ..sample };
-                            rays.push(
-                                pt.origin_towards(target),
-                                target,
-                                j as u32,
-                                sample,
-                                accel,
-                                &mut hints,
-                                &mut st,
-                                &mut add,
-                            );
-                        });
-                    }
-                    rays.trace(accel, &mut hints, &mut st, &mut add);
-                    let measuring = active;
-                    for (j, p) in sums.iter_mut().enumerate().filter(|(j, _)| measuring >> j & 1 != 0) {
-                        p.rays_used += count;
-                        if p.hits >= min_hits as f64 {
-                            active &= !(1 << j);
-                        }
-                    }
-                }
-                (sums, st)
-            })
-            .collect();
+        report.power_by_light = vec![0.0; scene.lights.list.len()];
         let mut scaled: Vec<Option<Vpl>> = Vec::with_capacity(locations.len());
         let mut footprints: Vec<(f32, [u32; 4])> = Vec::with_capacity(locations.len());
-        for (sums, st) in &measured {
-            rays += *st;
-            for p in sums {
-                footprints.push(((p.area / p.rays_used.max(1) as f64) as f32, p.rect));
-                let (i, (s, k)) = (scaled.len(), &locations[scaled.len()]);
-                scaled.push(p.scaled(s.vpl, i as u32, *k, *k as f64 * pc / n_states as f64, npix));
-            }
-        }
-        for b in probe_sets.iter().filter_map(OnceLock::get) {
-            rays += b.stats;
+        for (i, (p, (s, k))) in measured.iter().zip(&locations).enumerate() {
+            footprints.push((p.footprint(), p.rect));
+            scaled.push(p.scaled(s.vpl, i as u32, *k, *k as f64 * pc / n_states as f64, npix));
         }
         {
             let mut lum: Vec<f64> = scaled.iter().flatten().map(|v| luminance(v.radiance) as f64).collect();
@@ -924,66 +695,5 @@ impl<K: MutationKernel> VplSampler for Mir<K> {
             self.cdf = None;
             self.guide = None;
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The estimates `visibility_samples` gives of Σ u·V, Σ u²·V and the visible probes for a
-    /// visibility pattern V, as (sum, sum2, hits, rays traced).
-    fn sampled(lit: &[(u32, f32)], n: usize, xi: f64, visible: impl Fn(u32) -> bool) -> (f64, f64, f64, usize) {
-        let mut e = (0.0, 0.0, 0.0, 0);
-        visibility_samples(lit, n, xi, |i, s| {
-            e.3 += 1;
-            if visible(i) {
-                (e.0, e.1, e.2) = (e.0 + s.sum, e.1 + s.sum2, e.2 + s.hits);
-            }
-        });
-        e
-    }
-
-    #[test]
-    fn visibility_samples_estimate_the_visible_response_without_bias() {
-        // 1000 lit probes with responses spread over four decades, seen through a pattern of
-        // shadows (runs of hidden probes, as a shadow covers neighbouring probes).
-        let mut rng = Pcg32::from_words(&[7]);
-        let lit: Vec<(u32, f32)> = (0..1000).map(|i| (3 * i, 10f32.powf(4.0 * rng.next_f32() - 2.0))).collect();
-        let visible = |i: u32| (i / 90) % 3 != 1 && !i.is_multiple_of(7);
-        let exact = lit.iter().filter(|p| visible(p.0)).fold((0.0, 0.0, 0.0), |a, &(_, u)| {
-            let u = u as f64;
-            (a.0 + u, a.1 + u * u, a.2 + 1.0)
-        });
-        // Few probes: each traced once with its own response, so the sums are exact.
-        let few = &lit[..200];
-        let e = sampled(few, 256, 0.3, visible);
-        let exact_few = few.iter().filter(|p| visible(p.0)).map(|p| p.1 as f64).sum::<f64>();
-        assert_eq!(e.3, 200);
-        assert!((e.0 - exact_few).abs() <= 1e-9 * exact_few);
-        // Many probes: 256 samples, at most 256 rays; with every probe visible the estimate of
-        // Σ u is exact whatever the offset (the samples' weights sum to U).
-        let total: f64 = lit.iter().map(|p| p.1 as f64).sum();
-        for xi in [0.0, 0.37, 0.999_999] {
-            let e = sampled(&lit, 256, xi, |_| true);
-            assert!(e.3 <= 256);
-            assert!((e.0 - total).abs() < 1e-9 * total, "{} vs {total}", e.0);
-        }
-        // Averaged over the offset (a fine grid of it: the estimates are piecewise constant in
-        // xi), each estimate equals the exact value: every sample picks a probe ∝ u. Weights
-        // u instead of U/n, or offsets not spread over [0, 1), miss by far more than 0.5 %.
-        let grid = 20_000;
-        let mean = (0..grid)
-            .map(|g| sampled(&lit, 256, (g as f64 + 0.5) / grid as f64, visible))
-            .fold((0.0, 0.0, 0.0), |a, e| (a.0 + e.0 / grid as f64, a.1 + e.1 / grid as f64, a.2 + e.2 / grid as f64));
-        for (m, x, what) in
-            [(mean.0, exact.0, "Σ u·V"), (mean.1, exact.1, "Σ u²·V"), (mean.2, exact.2, "visible probes")]
-        {
-            assert!((m - x).abs() < 5e-3 * x, "{what}: mean {m} against {x}");
-        }
-        // One offset: the estimate of Σ u·V lies within a few % of it (the samples follow the
-        // probes' order, so they cover every shadow run).
-        let e = sampled(&lit, 256, 0.5, visible);
-        assert!((e.0 - exact.0).abs() < 0.05 * exact.0, "{} vs {}", e.0, exact.0);
     }
 }

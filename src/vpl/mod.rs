@@ -9,6 +9,7 @@ pub mod cdf;
 pub mod metropolis;
 pub mod mirpath;
 pub mod mutation;
+pub mod normalise;
 pub mod screen;
 pub mod set;
 pub mod sir;
