@@ -11,7 +11,10 @@
 //! bright) would reach a handful of its subset's pixels, each scaled by the subset count: a
 //! grid of bright dots that the discontinuity buffer turns into bright 8×8 squares. When the
 //! set knows each VPL's footprint ([`VplSet::footprint`]), a group whose VPLs would each reach
-//! fewer than [`EVERYWHERE_PIXELS`] pixels of a subset is *regional* ([`Regional`]): every pixel
+//! fewer than [`EVERYWHERE_PIXELS`] pixels of a subset, and whose regions are each no larger
+//! than a subset's pixels (so that gathering it there costs no more shadow rays than the
+//! interleaved gather; larger regions doubled the gather's time on light-box-thick at the
+//! paper's workload for the same error), is *regional* ([`Regional`]): every pixel
 //! of its VPLs' screen regions ([`VplSet::footprint_rect`], where MIR's probes saw them)
 //! gathers it with weight 1, and outside the region it stays in the split, gathered only by
 //! the pixels of its home subset, with that subset's scale. The split itself (ranks, subsets'
@@ -82,13 +85,24 @@ impl Interleave {
             return Self::new(vpls, n, m);
         }
         let s = ((n * m) as usize).min(groups) as f32;
-        // A group is regional when every VPL of it is small; its footprint is its largest one.
+        let whole = [0, 0, width - 1, height - 1];
+        let rect = |i: usize| match vpls.footprint_rect.get(i) {
+            Some(&[x0, y0, x1, y1]) => [x0.min(whole[2]), y0.min(whole[3]), x1.min(whole[2]), y1.min(whole[3])],
+            None => whole,
+        };
+        let rects: Vec<[u32; 4]> = (0..vpls.len()).map(rect).collect();
+        // A group is regional when every VPL of it is small and its region is no larger than
+        // the pixels of a subset (so it costs no more shadow rays than its interleaved gather);
+        // the group's footprint is its largest one.
+        let subset_pixels = pixels as f32 / s;
         let mut small = vec![Some(0.0f32); groups];
         for (i, &g) in vpls.group.iter().enumerate() {
             let f = vpls.footprint[i];
+            let [x0, y0, x1, y1] = rects[i];
+            let area = (x1.saturating_sub(x0) + 1) as f32 * (y1.saturating_sub(y0) + 1) as f32;
             let slot = &mut small[g as usize];
             *slot = match *slot {
-                Some(a) if f * pixels as f32 / s < EVERYWHERE_PIXELS => Some(a.max(f)),
+                Some(a) if f * pixels as f32 / s < EVERYWHERE_PIXELS && area <= subset_pixels => Some(a.max(f)),
                 _ => None,
             };
         }
@@ -105,12 +119,6 @@ impl Interleave {
         spread.truncate(groups / 8);
         let mut flagged = vec![false; groups];
         spread.iter().for_each(|&(_, g)| flagged[g as usize] = true);
-        let whole = [0, 0, width - 1, height - 1];
-        let rect = |i: usize| match vpls.footprint_rect.get(i) {
-            Some(&[x0, y0, x1, y1]) => [x0.min(whole[2]), y0.min(whole[3]), x1.min(whole[2]), y1.min(whole[3])],
-            None => whole,
-        };
-        let rects: Vec<[u32; 4]> = (0..vpls.len()).map(rect).collect();
         Self::split(vpls, n, m, &flagged).regions(&rects)
     }
 

@@ -1143,9 +1143,11 @@ mod tests {
     /// Regional VPLs ([`Interleave::regional`]) keep every pixel's expectation: averaged over
     /// every rotation of the split (the frame's random rotation is uniform over them), a gather
     /// with regional VPLs equals the gather of every VPL at every pixel (1×1), pixel by pixel,
-    /// for regions that cover the image, part of it, a few pixels, or nothing. A gather that
-    /// weighted a region's pixels by the subset scale, or skipped the home subset outside the
-    /// region, would be off by the VPL's light there.
+    /// for regions of a subset's size, of a few pixels, or of nothing; a VPL whose region is the
+    /// whole image stays in the split (a region larger than a subset's pixels would cost more
+    /// shadow rays than the interleaved gather). A gather that weighted a region's pixels by the
+    /// subset scale, or skipped the home subset outside the region, would be off by the VPL's
+    /// light there.
     #[test]
     fn regional_vpls_average_over_rotations_to_the_full_gather() {
         let (w, h) = (48u32, 40u32);
@@ -1158,14 +1160,20 @@ mod tests {
         vpls.footprint = vec![0.0; vpls.len()];
         vpls.footprint_rect = (0..vpls.len())
             .map(|i| match i % 4 {
-                0 => [0, 0, w / 2, h - 1],
-                1 => [w / 3, h / 4, w / 3 + 5, h / 4 + 6],
+                // 30 pixels: a subset's share of the 48×40 image.
+                0 => [0, 0, 4, 5],
+                1 => [w / 3, h / 4, w / 3 + 4, h / 4 + 4],
                 2 => [u32::MAX, u32::MAX, 0, 0],
                 _ => [0, 0, w - 1, h - 1],
             })
             .collect();
         let inter = Interleave::for_image(&vpls, 8, 8, (w, h));
-        assert_eq!(inter.regional.len(), vpls.group.iter().filter(|&&g| g < 16).count(), "an eighth of the groups");
+        // An eighth of the groups (all of footprint 0, so the first 16 in order) among those
+        // whose regions are no larger than a subset's pixels (group g holds VPLs g and g + 128,
+        // both with region kind g mod 4).
+        let flagged: Vec<u32> = (0..128).filter(|g| g % 4 != 3).take(16).collect();
+        assert_eq!(inter.regional.len(), vpls.group.iter().filter(|g| flagged.contains(g)).count());
+        assert!(inter.regional.iter().all(|r| r.vpl % 4 != 3), "a whole-image region is never regional");
         let mut st = RayStats::default();
         let g_max = 0.5;
         let (full, _) =

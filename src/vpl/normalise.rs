@@ -175,7 +175,8 @@ fn probes(ctx: &Context, density: &ProbeDensity, seed: u64, parallel: bool) -> P
 /// visible response times its balance weight), the probes traced, estimates of the probes that
 /// see it and of the weighted count (whose mean over the probes traced is the share of the
 /// image's pixels that see it), and the pixel rectangle of the probes whose shadow ray found
-/// it visible (widened by a probe cell each side; `[u32::MAX, u32::MAX, 0, 0]` while none did).
+/// it visible (widened by half a uniform probe cell each side; `[u32::MAX, u32::MAX, 0, 0]` while
+/// none did).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct ProbeSums {
     sum: f64,
@@ -261,11 +262,14 @@ impl ProbeSums {
         self.sum2 += v.sum2;
         self.hits += v.hits;
         self.area += v.hits * weight as f64;
+        // Half a cell each side: the footprint reaches past its outermost probes by less than
+        // the spacing of the uniform probes (and the guided ones are denser where it lies).
+        let (hx, hy) = (cell[0].div_ceil(2), cell[1].div_ceil(2));
         let r = &mut self.rect;
-        r[0] = r[0].min(pixel[0].saturating_sub(cell[0]));
-        r[1] = r[1].min(pixel[1].saturating_sub(cell[1]));
-        r[2] = r[2].max(pixel[0] + cell[0]);
-        r[3] = r[3].max(pixel[1] + cell[1]);
+        r[0] = r[0].min(pixel[0].saturating_sub(hx));
+        r[1] = r[1].min(pixel[1].saturating_sub(hy));
+        r[2] = r[2].max(pixel[0] + hx);
+        r[3] = r[3].max(pixel[1] + hy);
     }
 
     /// The VPL `vpl` (location `group`, `k` chain states, power `p_i`) with its radiance scaled
