@@ -305,7 +305,7 @@ fn clamp_summary(e: &mirage::gather::GatherEnergy, compensated: bool) -> String 
     } else if e.removed > 0.0 {
         format!("clamping removed {removed:.2} % of the gathered light, not compensated (biased: darker)")
     } else {
-        "no clamping".to_string()
+        "nothing clamped, not compensated".to_string()
     }
 }
 
