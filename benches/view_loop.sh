@@ -36,7 +36,8 @@ for round in $(seq "$rounds"); do
           # shellcheck disable=SC2086 # the flag strings are meant to split
           line=$("$bin" view "${args[@]}" --headless --width 512 --height 512 --vpls 256 \
             --vpl-sampler "$sampler" $flags 2>&1 | tail -1)
-          nums=$(echo "$line" | sed -E 's/.*: ([0-9.]+) frames\/s \(([0-9.]+) ms\/frame: VPLs ([0-9.]+), primary ([0-9.]+), shadow ([0-9.]+), filter ([0-9.]+), display ([0-9.]+).*/\1 \2 \3 \4 \5 \6 \7/')
+          # (The shadow time may carry "(compensation N)": the clamp compensation's part of it.)
+          nums=$(echo "$line" | sed -E 's/.*: ([0-9.]+) frames\/s \(([0-9.]+) ms\/frame: VPLs ([0-9.]+), primary ([0-9.]+), shadow ([0-9.]+)( \(compensation [0-9.]+\))?, filter ([0-9.]+), display ([0-9.]+).*/\1 \2 \3 \4 \5 \7 \8/')
           echo "$round $scene $sampler $camera $side $nums" | tee -a "$out"
         done
       done

@@ -50,6 +50,12 @@ pub struct FrameSettings {
     /// their screen region ([`Interleave::for_image`]): without it such VPLs show as bright
     /// 8×8 squares.
     pub spread_small_vpls: bool,
+    /// Split a VPL whose path count exceeds this many times the median count into copies on
+    /// several interleave subsets ([`gather::split_strong`]); 0: never.
+    pub split_strong: f32,
+    /// Measure how evenly the VPLs lit the image ([`FrameStats::power_ratios`]; `render`'s
+    /// summary prints it): a few per cent of the gather's time.
+    pub vpl_power: bool,
     /// Keep each pixel's compensation term apart as well ([`Frame::compensation`]; for the
     /// EXR's `compensation` layer).
     pub compensation_aov: bool,
@@ -79,6 +85,8 @@ impl FrameSettings {
             tracing: Tracing::default(),
             compensate: false,
             spread_small_vpls: true,
+            split_strong: 4.0,
+            vpl_power: false,
             compensation_aov: false,
             compensation_stride: 1,
         }
@@ -119,6 +127,10 @@ pub struct FrameStats {
     pub rays: RayStats,
     /// Energy kept and removed by clamping.
     pub energy: GatherEnergy,
+    /// Per frame, the largest luminance a VPL brought to the image over the median
+    /// ([`gather::power_ratio`]), when [`FrameSettings::vpl_power`] asks; frames whose VPLs
+    /// brought nothing have none.
+    pub power_ratios: Vec<f32>,
     /// Frames gathered from a held G-buffer ([`gather::GBufferUse::Reuse`]), no camera rays
     /// traced.
     pub gbuffer_reused: u64,
@@ -133,6 +145,7 @@ impl std::ops::AddAssign<&FrameStats> for FrameStats {
         self.filter_time += o.filter_time;
         self.rays += o.rays;
         self.energy += o.energy;
+        self.power_ratios.extend_from_slice(&o.power_ratios);
         self.gbuffer_reused += o.gbuffer_reused;
         self.sampler.candidates += o.sampler.candidates;
         self.sampler.kept += o.sampler.kept;
@@ -260,10 +273,14 @@ pub fn gather_frame_reusing(
     camera_rays: CameraRays,
 ) -> Frame {
     let (n, m) = settings.interleave;
+    // The gathered set: the sampler's, with its strong VPLs split (the frame keeps the
+    // sampler's own for the viewer's reuse).
+    let split = gather::split_strong(&vpls, settings.split_strong, (n, m), (camera.width, camera.height));
+    let gathered_vpls = split.as_ref().unwrap_or(&vpls);
     let inter = if settings.spread_small_vpls {
-        Interleave::for_image(&vpls, n, m, (camera.width, camera.height))
+        Interleave::for_image(gathered_vpls, n, m, (camera.width, camera.height))
     } else {
-        Interleave::new(&vpls, n, m)
+        Interleave::new(gathered_vpls, n, m)
     }
     .rotated(hash_words(&[seed, TAG_INTERLEAVE_ROTATION]));
     let filter = match settings.filter {
@@ -296,11 +313,13 @@ pub fn gather_frame_reusing(
         planes: filter.map(|s| PlaneLayout::new(camera.width, &s)),
         gbuffer: camera_rays.gbuffer,
         ratio_planes_on_reuse: recorded,
+        vpl_power: settings.vpl_power,
     };
     let Gathered {
         gbuffer: gbuf,
         light: gathered,
         energy,
+        vpl_power,
         primary_time,
         shadow_time,
         compensation_time,
@@ -308,8 +327,9 @@ pub fn gather_frame_reusing(
         planes,
         held,
         reused,
-    } = gather::trace_and_gather(scene, accel, &vpls, &pass, spare.lent, &mut stats.rays);
+    } = gather::trace_and_gather(scene, accel, gathered_vpls, &pass, spare.lent, &mut stats.rays);
     stats.energy = energy;
+    stats.power_ratios = gather::power_ratio(&vpl_power).into_iter().collect();
     stats.primary_time = primary_time;
     stats.shadow_time = shadow_time;
     stats.compensation_time = compensation_time;

@@ -260,7 +260,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         let compensated = options.frame.compensate && options.frame.clamp > 0.0;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
         println!(
-            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms{}; {}{}",
+            "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms{}; {}{}{}",
             out.spp,
             options.frame.vpls,
             options.vpl_sampler.build_with(&options.sampler).name(),
@@ -282,10 +282,24 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
                 _ => String::new(),
             },
             clamp_summary(&fs.energy, compensated),
-            fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default()
+            fs.sampler.acceptance_rate().map(|a| format!(", acceptance {:.1} %", 100.0 * a)).unwrap_or_default(),
+            power_summary(&fs.power_ratios)
         );
     }
     Ok(())
+}
+
+/// The frames' VPL power spread ([`mirage::gather::power_ratio`]): the median frame's and the
+/// worst frame's ratio of the strongest VPL to the median one.
+fn power_summary(ratios: &[f32]) -> String {
+    let mut r = ratios.to_vec();
+    r.sort_by(f32::total_cmp);
+    match (r.get(r.len() / 2), r.last()) {
+        (Some(median), Some(worst)) => {
+            format!("; strongest VPL / median VPL in the image {median:.1} (median frame), {worst:.1} (worst frame)")
+        }
+        _ => String::new(),
+    }
 }
 
 /// What the clamp removed and what its compensation added back, in % of the unclamped

@@ -114,6 +114,12 @@ pub struct GatherArgs {
     /// faces of a slit).
     #[arg(long, value_parser = parse_filter_fade, default_value = "auto", value_name = "auto|never|K")]
     pub filter_fade: FilterFade,
+    /// Split a VPL that brings more than B times the median VPL's light (MIR's VPLs where a
+    /// chain stayed long) into copies gathered by several interleave subsets, so that its light
+    /// is not one subset's bright dots: the same expectation, less noise per frame, a few more
+    /// VPLs to gather. 0: never split.
+    #[arg(long, value_name = "B", default_value_t = crate::frame::FrameSettings::interactive().split_strong)]
+    pub split_strong: f32,
     /// Discontinuity buffer: largest normal angle between pixels averaged together, degrees.
     #[arg(long, default_value_t = 20.0)]
     pub filter_angle: f32,
@@ -134,6 +140,9 @@ impl GatherArgs {
         if self.compensate_stride.is_some_and(|n| !(1..=64).contains(&n)) {
             return Err(format!("--compensate-stride {} is outside 1…64", self.compensate_stride.unwrap_or(0)));
         }
+        if !(self.split_strong == 0.0 || (1.0..=1e6).contains(&self.split_strong)) {
+            return Err(format!("--split-strong {} must be 0 (off) or in 1…1000000", self.split_strong));
+        }
         let angle_ok = self.filter_angle > 0.0 && self.filter_angle <= 180.0;
         let depth_ok = self.filter_depth > 0.0 && self.filter_depth.is_finite();
         if !angle_ok || !depth_ok {
@@ -152,6 +161,7 @@ impl GatherArgs {
             tracing: self.rays.into(),
             compensate: self.compensate_or(true),
             compensation_stride: self.compensate_stride.unwrap_or(2),
+            split_strong: self.split_strong,
             ..crate::frame::FrameSettings::interactive()
         }
     }
@@ -170,6 +180,83 @@ impl GatherArgs {
     /// Whether the clamp is compensated, `default` when no --compensate was given.
     pub fn compensate_or(&self, default: bool) -> bool {
         self.compensate.map_or(default, |s| s == Switch::On)
+    }
+}
+
+/// Flags of the Metropolis VPL samplers (mh, mtmh) shared by `render --mode mir` and `view`.
+#[derive(Args, Clone, Debug)]
+pub struct MirArgs {
+    /// Mutation kernel of the mir chains.
+    #[arg(long, value_enum, default_value_t = KernelArg::Bidir)]
+    pub kernel: KernelArg,
+    /// Candidates per MTMH step (p).
+    #[arg(long, default_value_t = 10)]
+    pub candidates: usize,
+    /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
+    #[arg(long)]
+    pub light_cdf: bool,
+    /// mir: independent Metropolis chains run side by side, each giving its share of the VPL
+    /// locations (the count, not the thread count, fixes the image).
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().chains)]
+    pub chains: usize,
+    /// mir: independent bidirectional samples estimating the camera power P_c each frame (papers/002
+    /// §5.1): its error scales the whole frame, so behind slits and holes, where few samples
+    /// carry light, more of them lower the image's error.
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().pc_samples)]
+    pub pc_samples: usize,
+    /// mir: camera probes per batch estimating each VPL's camera response P′ (papers/002 §5.4);
+    /// a VPL seen by few probes takes further batches.
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().probes)]
+    pub probes: usize,
+    /// mir: continue the last frame's chains while the camera stands still (the paper's
+    /// temporal coherence) instead of starting each frame's chains from fresh picks of the P_c
+    /// samples (drawn ∝ their weight; the default). Fresh picks make frames independent: where
+    /// the chains move between regions of the image only every few thousand states (light
+    /// through small holes), carried chains keep each region's share of VPLs for many frames
+    /// and the image converges slowly
+    #[arg(long)]
+    pub carry_chains: bool,
+    /// mir: share of the camera ends (P_c samples, camera-end mutations) and of the probes
+    /// drawn where the last frame's chains looked on the screen (the rest uniform; every weight
+    /// divides by the mixture's density, so the expectation is unchanged). 0: all uniform
+    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().guided_probes)]
+    pub guide: f64,
+}
+
+impl MirArgs {
+    /// Rejects absurd values with a one-line message naming the flag.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.candidates == 0 || self.candidates > 1000 {
+            return Err(format!("--candidates {} is outside 1…1000", self.candidates));
+        }
+        if self.chains == 0 || self.chains > 4096 {
+            return Err(format!("--chains {} is outside 1…4096", self.chains));
+        }
+        if !(0.0..=0.9).contains(&self.guide) {
+            return Err(format!("--guide {} is outside 0…0.9", self.guide));
+        }
+        if self.pc_samples == 0 || self.pc_samples > 1 << 26 {
+            return Err(format!("--pc-samples {} is outside 1…{}", self.pc_samples, 1 << 26));
+        }
+        if self.probes == 0 || self.probes > 1 << 22 {
+            return Err(format!("--probes {} is outside 1…{}", self.probes, 1 << 22));
+        }
+        Ok(())
+    }
+
+    /// The samplers' settings these flags give, for paths of at most `max_depth` events.
+    pub fn config(&self, max_depth: u32) -> SamplerConfig {
+        SamplerConfig {
+            max_depth,
+            kernel: self.kernel,
+            candidates: self.candidates,
+            light_cdf: self.light_cdf,
+            chains: self.chains,
+            pc_samples: self.pc_samples,
+            probes: self.probes,
+            carry_chains: self.carry_chains,
+            guide: self.guide,
+        }
     }
 }
 
@@ -456,41 +543,9 @@ pub struct RenderArgs {
     /// VPL sampler (default: sir for --mode ir, mtmh for --mode mir).
     #[arg(long, value_enum)]
     pub vpl_sampler: Option<VplSamplerArg>,
-    /// Mutation kernel of the mir chains.
-    #[arg(long, value_enum, default_value_t = KernelArg::Bidir)]
-    pub kernel: KernelArg,
-    /// Candidates per MTMH step (p).
-    #[arg(long, default_value_t = 10)]
-    pub candidates: usize,
-    /// mir: choose lights with a light-source CDF estimated from the camera (papers/002 §7.4).
-    #[arg(long)]
-    pub light_cdf: bool,
-    /// mir: independent Metropolis chains run side by side, each giving its share of the VPL
-    /// locations (the count, not the thread count, fixes the image).
-    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().chains)]
-    pub chains: usize,
-    /// mir: independent bidirectional samples estimating the camera power P_c each frame (papers/002
-    /// §5.1): its error scales the whole frame, so behind slits and holes, where few samples
-    /// carry light, more of them lower the image's error.
-    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().pc_samples)]
-    pub pc_samples: usize,
-    /// mir: camera probes per batch estimating each VPL's camera response P′ (papers/002 §5.4);
-    /// a VPL seen by few probes takes further batches.
-    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().probes)]
-    pub probes: usize,
-    /// mir: continue the last frame's chains while the camera stands still (the paper's
-    /// temporal coherence) instead of starting each frame's chains from fresh picks of the P_c
-    /// samples (drawn ∝ their weight; the default). Fresh picks make frames independent: where
-    /// the chains move between regions of the image only every few thousand states (light
-    /// through small holes), carried chains keep each region's share of VPLs for many frames
-    /// and the image converges slowly
-    #[arg(long)]
-    pub carry_chains: bool,
-    /// mir: share of the camera ends (P_c samples, camera-end mutations) and of the probes
-    /// drawn where the last frame's chains looked on the screen (the rest uniform; every weight
-    /// divides by the mixture's density, so the expectation is unchanged). 0: all uniform
-    #[arg(long, default_value_t = crate::vpl::metropolis::MirSettings::mtmh().guided_probes)]
-    pub guide: f64,
+    /// The Metropolis samplers' flags (mir).
+    #[command(flatten)]
+    pub mir: MirArgs,
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
@@ -620,21 +675,7 @@ impl RenderArgs {
             }
             (_, Some(s)) => s,
         };
-        if self.candidates == 0 || self.candidates > 1000 {
-            return Err(OptionsError(format!("--candidates {} is outside 1…1000", self.candidates)));
-        }
-        if self.chains == 0 || self.chains > 4096 {
-            return Err(OptionsError(format!("--chains {} is outside 1…4096", self.chains)));
-        }
-        if !(0.0..=0.9).contains(&self.guide) {
-            return Err(OptionsError(format!("--guide {} is outside 0…0.9", self.guide)));
-        }
-        if self.pc_samples == 0 || self.pc_samples > 1 << 26 {
-            return Err(OptionsError(format!("--pc-samples {} is outside 1…{}", self.pc_samples, 1 << 26)));
-        }
-        if self.probes == 0 || self.probes > 1 << 22 {
-            return Err(OptionsError(format!("--probes {} is outside 1…{}", self.probes, 1 << 22)));
-        }
+        self.mir.validate().map_err(OptionsError)?;
         if self.debug_strategy.is_some() && self.mode != Mode::Bdpt {
             return Err(OptionsError("--debug-strategy needs --mode bdpt".into()));
         }
@@ -667,21 +708,12 @@ impl RenderArgs {
             tonemap,
             debug_strategy: self.debug_strategy,
             vpl_sampler,
-            sampler: SamplerConfig {
-                max_depth: self.max_depth,
-                kernel: self.kernel,
-                candidates: self.candidates,
-                light_cdf: self.light_cdf,
-                chains: self.chains,
-                pc_samples: self.pc_samples,
-                probes: self.probes,
-                carry_chains: self.carry_chains,
-                guide: self.guide,
-            },
+            sampler: self.mir.config(self.max_depth),
             frame: crate::frame::FrameSettings {
                 max_specular: 8,
                 compensate: self.gather.compensate_or(true),
                 compensation_stride: self.gather.compensate_stride.unwrap_or(1),
+                vpl_power: true,
                 ..self.gather.frame_settings()
             },
             pssmlt,

@@ -400,8 +400,10 @@ fn default_render_options(w: u32, h: u32) -> mirage::options::RenderOptions {
 /// on every built-in diffuse scene, easy and hard, the image mean over 8 seeds agrees with
 /// pt's. Checked two ways: within four standard errors of the difference (the seeds' spread
 /// is what resolves a bias), and, where that resolution is finer than 1 % of the mean, within
-/// 1 %. Without compensation the same renders are darker where the clamp acts much (on the
-/// slit and box scenes, by more than 3 standard errors).
+/// 1 %. On the hard scenes also per 8×8 block, the interleave tile (the block test: no block
+/// of the mean image brighter or darker than pt's beyond the two estimates' noise; the bright
+/// 8×8 squares of issue 19 were such blocks). Without compensation the same renders are darker where the
+/// clamp acts much (on the slit and box scenes, by more than 3 standard errors).
 #[test]
 fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
     let (w, h) = (32, 24);
@@ -419,12 +421,22 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
                 offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image()
             })
             .collect();
-        let (r, se_r, ..) = seed_spread(&Estimate::from_batches(&imgs));
-        let run = |settings: &FrameSettings| {
-            let sampler = || options.vpl_sampler.build_with(&options.sampler);
-            seed_spread(&seed_runs(name, &s, &a, sampler, (settings, options.filter_fade), 7, 8))
-        };
-        let (m, se, med, lo, hi) = run(&options.frame);
+        let reference = Estimate::from_batches(&imgs);
+        let (r, se_r, ..) = seed_spread(&reference);
+        let sampler = || options.vpl_sampler.build_with(&options.sampler);
+        let default = seed_runs(name, &s, &a, sampler, (&options.frame, options.filter_fade), 7, 8);
+        let (m, se, med, lo, hi) = seed_spread(&default);
+        // On the hard scenes, no 8×8 block (the interleave tile, the squares' size) brighter or
+        // darker than pt's beyond the noise of the two estimates. Not on sunlit-room at this
+        // size: there the discontinuity buffer (weight 0.8 after 16 frames) blurs the sun's
+        // sharp patches over its 8×8 window, a quarter of a 32×24 image, and moves up to 25 % of
+        // a block's light to its neighbour (measured over 8 seeds: blocks −16 % and +20 %
+        // beside the patch on the far wall; with --no-filter every block within 3 %). That is
+        // the filter's known blur where light changes within a few pixels, which the fade
+        // removes as frames accumulate, not the estimator's.
+        if hard {
+            assert_agree_blocks(&format!("{name}-default-render-vs-pt"), &default, &reference, 8);
+        }
         let sd = (se * se + se_r * se_r).sqrt();
         let z = (m - r) / sd;
         eprintln!(
@@ -498,4 +510,34 @@ fn mean_se(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;
     let m = v.iter().sum::<f64>() / n;
     (m, (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt())
+}
+
+/// The bound on how unevenly the default render's VPLs light the image (issue 19's 8×8
+/// squares): in the median frame, the strongest VPL brings at most 64 times the median VPL's
+/// light (the interleave tile's pixel count: one VPL worth a whole tile of its peers). Measured
+/// at 256×192 over 16 frames: 3.9 cornell, 7.3 deep-shaft, 20.5 ajar-door-thick, 30.7
+/// light-box-thick (without splitting strong VPLs 8.5, 10.4, 31.4, 40.6; SIR 4.1, 49.8, 39.3,
+/// 23.3, its worst frames 7–4734). The median frame is what a viewer sees most; the worst
+/// frame is printed by `render`. On light-box-thick what remains is VPLs seen through the
+/// holes, which light a few pixels each and whose screen regions are too large to gather
+/// whole.
+#[test]
+fn the_default_renders_vpls_bring_comparable_light() {
+    let (w, h) = (256, 192);
+    let options = default_render_options(w, h);
+    assert!(options.frame.vpl_power && options.frame.split_strong > 0.0);
+    for name in ["cornell", "ajar-door-thick", "light-box-thick", "deep-shaft"] {
+        let (s, a) = scene(builtin::by_name(name).unwrap(), w, h);
+        let mut sampler = options.vpl_sampler.build_with(&options.sampler);
+        let acc = Accumulation { budget: Budget::Samples(16), seed: 3, aovs: false, filter_fade: options.filter_fade };
+        let (out, stats) =
+            frame::render_progressive(&s, &a, sampler.as_mut(), &options.frame, acc, &ProgressBar::hidden());
+        assert_eq!(out.film.image().non_finite_count(), 0, "{name}");
+        let mut r = stats.power_ratios.clone();
+        assert_eq!(r.len(), 16, "{name}: a ratio per frame");
+        r.sort_by(f32::total_cmp);
+        let median = r[r.len() / 2];
+        eprintln!("{name}: strongest / median VPL {median:.1} (median frame), {:.1} (worst)", r[r.len() - 1]);
+        assert!(median <= 64.0, "{name}: the strongest VPL brings {median:.1}× the median one's light");
+    }
 }

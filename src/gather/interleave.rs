@@ -70,6 +70,79 @@ pub struct Interleave {
 /// pixel of its region (module doc).
 pub const EVERYWHERE_PIXELS: f32 = 16.0;
 
+/// Whether a VPL seen by `footprint` of the image's `pixels` would light fewer than
+/// [`EVERYWHERE_PIXELS`] pixels of one of `subsets` interleave subsets.
+fn lights_few_pixels(footprint: f32, pixels: usize, subsets: f32) -> bool {
+    footprint * pixels as f32 / subsets < EVERYWHERE_PIXELS
+}
+
+/// The VPLs of `vpls` with their strong ones split (a VPL alone in its group whose path count
+/// k exceeds `bound` times the set's median count, and that is not small enough to be
+/// regional): each becomes ⌈k / (bound · median)⌉ copies, at most one per subset of an n×m
+/// pattern, with equal shares of its radiance, each in a group of its own numbered so that the
+/// copies fall in consecutive subsets. None when no VPL is strong.
+///
+/// MIR's locations bring power in proportion to k, the chain states spent there: a chain that
+/// stays long at one location makes one VPL worth many. In the interleaved gather that power
+/// reaches only the pixels of one subset, at the subset's scale: the brightest copy of the
+/// tile in a frame, for the filter to average or, once it has faded out, a grid of bright
+/// dots. A pixel's variance from a VPL of image power P gathered by one subset in S is
+/// ∝ (S − 1)P²; split over s subsets it is ∝ (S/s − 1)P², for s − 1 more VPLs to gather. For a
+/// given number of gathered VPLs the variance is least when every copy brings the same power,
+/// MIR's own principle, which the counts had broken.
+///
+/// The expectation is unchanged: the group numbers are padded to a multiple of S (the new
+/// numbers no copy took are empty groups), so every subset holds the same number of groups
+/// and has scale S, and each VPL, copy or not, has expected weight 1 at every pixel over the
+/// frame's rotation ([`Interleave::rotated`]).
+pub fn split_strong(vpls: &VplSet, bound: f32, (n, m): (u32, u32), (width, height): (u32, u32)) -> Option<VplSet> {
+    let tile = (n * m).max(1);
+    if !(bound >= 1.0) || vpls.is_empty() || tile <= 1 {
+        return None;
+    }
+    let mut counts: Vec<u32> = vpls.count.clone();
+    let mid = counts.len() / 2;
+    let cap = bound * (*counts.select_nth_unstable(mid).1).max(1) as f32;
+    let mut members = vec![0u32; vpls.groups as usize];
+    vpls.group.iter().for_each(|&g| members[g as usize] += 1);
+    let pixels = width as usize * height as usize;
+    let s = (tile as usize).min(vpls.groups.max(1) as usize) as f32;
+    let copies = |i: usize| -> u32 {
+        let k = vpls.count[i] as f32;
+        let small = vpls.footprint.get(i).is_some_and(|&f| lights_few_pixels(f, pixels, s));
+        if k <= cap || members[vpls.group[i] as usize] != 1 || small { 1 } else { ((k / cap).ceil() as u32).min(tile) }
+    };
+    if (0..vpls.len()).all(|i| copies(i) == 1) {
+        return None;
+    }
+    let with_footprints = vpls.footprint.len() == vpls.len() && vpls.footprint_rect.len() == vpls.len();
+    let g0 = vpls.groups;
+    // Per residue r mod the tile, the next unused group number ≥ g0 with that residue.
+    let mut next: Vec<u32> = (0..tile).map(|r| g0 + (r + tile - g0 % tile) % tile).collect();
+    let mut out = VplSet::default();
+    for i in 0..vpls.len() {
+        let c = copies(i);
+        let mut v = vpls.get(i);
+        v.radiance /= c as f32;
+        v.count = vpls.count[i].div_ceil(c);
+        let home = v.group % tile;
+        for j in 0..c {
+            if j > 0 {
+                let r = ((home + j) % tile) as usize;
+                v.group = next[r];
+                next[r] += tile;
+            }
+            out.push(v);
+            if with_footprints {
+                out.footprint.push(vpls.footprint[i]);
+                out.footprint_rect.push(vpls.footprint_rect[i]);
+            }
+        }
+    }
+    out.groups = out.groups.max(g0).next_multiple_of(tile);
+    Some(out)
+}
+
 impl Interleave {
     /// Splits `vpls` for an n×m pattern, none regional.
     pub fn new(vpls: &VplSet, n: u32, m: u32) -> Self {
@@ -102,7 +175,7 @@ impl Interleave {
             let area = (x1.saturating_sub(x0) + 1) as f32 * (y1.saturating_sub(y0) + 1) as f32;
             let slot = &mut small[g as usize];
             *slot = match *slot {
-                Some(a) if f * pixels as f32 / s < EVERYWHERE_PIXELS && area <= subset_pixels => Some(a.max(f)),
+                Some(a) if lights_few_pixels(f, pixels, s) && area <= subset_pixels => Some(a.max(f)),
                 _ => None,
             };
         }
@@ -275,6 +348,67 @@ mod tests {
                         assert_eq!(row.of(x), inter.subset_of(x, y), "{groups} groups, {n}x{m}, pixel ({x}, {y})");
                     }
                 }
+            }
+        }
+    }
+
+    /// Splitting the strong VPLs keeps every VPL's expected weight at a pixel: over all S
+    /// rotations, the radiance its copies bring to any pixel (their subset's scale times their
+    /// share) averages to the VPL's radiance, exactly; the copies of one VPL fall in distinct
+    /// subsets; and what was not strong, or was small enough to be regional, is not split.
+    #[test]
+    fn split_strong_keeps_each_vpls_expected_weight() {
+        let (n, m) = (4, 4);
+        let tile = 16;
+        for groups in [5u32, 16, 37, 100] {
+            let mut vpls = VplSet::default();
+            for g in 0..groups {
+                // Counts 1…3 with a few strong ones (40, 200) and one strong but small.
+                let count = match g % 11 {
+                    3 => 40,
+                    7 => 200,
+                    9 => 300,
+                    _ => 1 + g % 3,
+                };
+                vpls.push(Vpl {
+                    position: glam::Vec3::new(g as f32, 0.0, 0.0),
+                    normal: glam::Vec3::Y,
+                    radiance: glam::Vec3::splat(count as f32),
+                    lobe: None,
+                    count,
+                    flags: 0,
+                    length: 1,
+                    group: g,
+                });
+                vpls.footprint.push(if g % 11 == 9 { 1e-6 } else { 0.5 });
+                vpls.footprint_rect.push([0, 0, 63, 63]);
+            }
+            let split = split_strong(&vpls, 4.0, (n, m), (64, 64)).expect("strong VPLs to split");
+            assert!(split.len() > vpls.len());
+            assert_eq!(split.footprint.len(), split.len());
+            let inter = Interleave::new(&split, n, m);
+            let s = inter.subsets.len();
+            // Expected radiance at pixel offset 0 over the S rotations, per original VPL
+            // (identified by its position).
+            let mut brought = vec![0.0f64; groups as usize];
+            for k in 0..s as u64 {
+                let turned = inter.clone().rotated(k);
+                let sub = turned.subset_of(0, 0);
+                for &i in &turned.subsets[sub] {
+                    let orig = split.position[i as usize].x as usize;
+                    brought[orig] += (split.radiance[i as usize].x * turned.scales[sub]) as f64 / s as f64;
+                }
+            }
+            for (g, &got) in brought.iter().enumerate() {
+                let want = vpls.radiance[g].x as f64;
+                assert!((got - want).abs() < 1e-4 * want, "{groups} groups: VPL {g} brings {got} for {want}");
+                let copies: Vec<usize> = (0..split.len()).filter(|&i| split.position[i].x as usize == g).collect();
+                let strong = matches!(g % 11, 3 | 7);
+                assert_eq!(copies.len() > 1, strong, "{groups} groups: VPL {g} split {} ways", copies.len());
+                let mut subsets: Vec<u32> = copies.iter().map(|&i| split.group[i] % tile).collect();
+                subsets.sort();
+                subsets.dedup();
+                assert_eq!(subsets.len(), copies.len(), "{groups} groups: copies of VPL {g} share a subset");
             }
         }
     }

@@ -13,8 +13,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 pub use gbuffer::{GBuffer, JitterSequence};
-pub use interleave::Interleave;
-pub use shade::{GatherEnergy, gather};
+pub use interleave::{Interleave, split_strong};
+pub use shade::{GatherEnergy, gather, power_ratio};
 
 use crate::accel::Accel;
 use crate::filter::PlaneLayout;
@@ -60,6 +60,9 @@ pub struct OnePass<'a> {
     /// albedo ([`PlaneLayout::fill_ratio_row`]): the discontinuity buffer will take its windows'
     /// neighbours from a record ([`crate::filter::Masks::Apply`]) and read no other plane.
     pub ratio_planes_on_reuse: bool,
+    /// Sum the luminance each VPL brings to the image ([`Gathered::vpl_power`]): a few per cent
+    /// of the gather's time (an add per contribution), so only when asked.
+    pub vpl_power: bool,
 }
 
 /// How a frame gets its camera rays: whether it traces, holds or reuses its G-buffer, and
@@ -156,6 +159,9 @@ pub struct Gathered {
     pub light: Vec<Vec3>,
     /// Energy kept and removed by the clamp.
     pub energy: GatherEnergy,
+    /// Per VPL, the luminance it brought to the image ([`power_ratio`]), when
+    /// [`OnePass::vpl_power`] asked; empty otherwise.
+    pub vpl_power: Vec<f32>,
     /// The pass's wall time split between camera rays (G-buffer) and gathering, in proportion to
     /// the thread time each took.
     pub primary_time: Duration,
@@ -207,6 +213,7 @@ pub fn trace_and_gather(
         planes: layout,
         gbuffer: use_gbuffer,
         ratio_planes_on_reuse,
+        vpl_power: keep_power,
     } = *pass;
     let rays = PrimaryRays { scene, accel, camera, seed, jitter, sequence, max_specular, tracing };
     let gatherer = Gatherer::new(scene, accel, vpls, interleave, g_max, min_distance, tracing)
@@ -264,7 +271,8 @@ pub fn trace_and_gather(
     let keep_receiver = gatherer.keeps_receiver();
     // Per band: ray statistics, energy, thread time in each half, and the compensation's part
     // of the second.
-    type Band = (RayStats, GatherEnergy, Duration, Duration, Duration);
+    // Per band also the luminance each VPL brought to it.
+    type Band = (RayStats, GatherEnergy, Duration, Duration, Duration, Vec<f32>);
     let bands: Vec<Band> = light
         .par_chunks_mut(band_len.max(1))
         .zip(g.emitted.par_chunks_mut(band_len.max(1)))
@@ -325,12 +333,13 @@ pub fn trace_and_gather(
                 };
                 let t_primary = t.elapsed();
                 let (mut energy, mut t_comp) = (GatherEnergy::default(), Duration::ZERO);
+                let mut power = if keep_power { vec![0.0; vpls.len()] } else { Vec::new() };
                 let row = w as usize;
                 let mut comp_rows = comp_band.as_deref_mut().map(|c| c.chunks_mut(row));
                 let rows = receivers.chunks(row).zip(prepared.chunks(row)).zip(light.chunks_mut(row));
                 for (k, ((receivers, prepared), light)) in rows.enumerate() {
                     let comp = comp_rows.as_mut().and_then(|c| c.next());
-                    let r = gatherer.row(y0 + k as u32, receivers, Some(prepared), light, comp);
+                    let r = gatherer.row(y0 + k as u32, receivers, Some(prepared), light, comp, &mut power);
                     st += r.stats;
                     energy += r.energy;
                     t_comp += r.compensation_time;
@@ -345,7 +354,7 @@ pub fn trace_and_gather(
                         }
                     }
                 }
-                (st, energy, t_primary, t.elapsed() - t_primary, t_comp)
+                (st, energy, t_primary, t.elapsed() - t_primary, t_comp, power)
             },
         )
         .collect();
@@ -357,7 +366,11 @@ pub fn trace_and_gather(
     }
     let (mut energy, mut primary, mut shadow, mut comp) =
         (GatherEnergy::default(), Duration::ZERO, Duration::ZERO, Duration::ZERO);
-    for (st, e, p, s, c) in bands {
+    let mut vpl_power = if keep_power { vec![0.0; vpls.len()] } else { Vec::new() };
+    for (st, e, p, s, c, band_power) in bands {
+        for (a, b) in vpl_power.iter_mut().zip(band_power) {
+            *a += b;
+        }
         *stats += st;
         energy += e;
         primary += p;
@@ -372,6 +385,7 @@ pub fn trace_and_gather(
         gbuffer: g,
         light,
         energy,
+        vpl_power,
         primary_time,
         shadow_time: wall - primary_time,
         compensation_time,
@@ -501,6 +515,7 @@ mod tests {
                     planes: Some(layout),
                     gbuffer: GBufferUse::Trace,
                     ratio_planes_on_reuse: false,
+                    vpl_power: false,
                 };
                 // Three times: fresh arrays, the first pass's arrays reused, and reused arrays
                 // filled with garbage (NaN, infinities, huge and negative values): nothing a pass
@@ -631,6 +646,7 @@ mod tests {
                     planes: Some(layout),
                     gbuffer,
                     ratio_planes_on_reuse: false,
+                    vpl_power: false,
                 };
                 let mut st = RayStats::default();
                 let out = trace_and_gather(&scene, &accel, vpls, &pass, lent, &mut st);

@@ -57,6 +57,22 @@ impl std::ops::AddAssign for GatherEnergy {
     }
 }
 
+/// How evenly one gather's VPLs lit the image: the largest luminance a VPL brought to the image
+/// (`power[i]`: its contributions summed over the pixels it lit, each at its interleave weight)
+/// over the median of those that brought any; None when none did. A VPL far above the median
+/// shows as a bright copy of the interleave tile (the 8×8-square symptom) that the
+/// discontinuity buffer, which averages one tile, cannot blend away.
+pub fn power_ratio(power: &[f32]) -> Option<f32> {
+    let mut lit: Vec<f32> = power.iter().copied().filter(|p| *p > 0.0).collect();
+    if lit.is_empty() {
+        return None;
+    }
+    let mid = lit.len() / 2;
+    let (_, median, above) = lit.select_nth_unstable_by(mid, f32::total_cmp);
+    let max = above.iter().copied().fold(*median, f32::max);
+    Some(max / *median)
+}
+
 /// What [`Gatherer::row`] did.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct RowGathered {
@@ -68,37 +84,47 @@ pub(crate) struct RowGathered {
     pub compensation_time: Duration,
 }
 
-/// A shadow ray still to trace: pixel x of the row, clamped and unclamped contributions, segment.
-type Pending = (u32, Vec3, Vec3, Vec3, Vec3);
+/// A shadow ray still to trace: pixel x of the row, its VPL, clamped and unclamped
+/// contributions, segment.
+type Pending = (u32, u32, Vec3, Vec3, Vec3, Vec3);
 
 /// Per-row accumulation of contributions that pass their shadow rays.
-struct RowSums {
+struct RowSums<'s> {
     sum: Vec<Vec3>,
     removed: Vec<Vec3>,
     pending: Vec<Pending>,
+    /// Each pixel's interleave scale (the weight of its subset's VPLs there).
+    scale: Vec<f32>,
+    /// Per VPL, the luminance it brought to the image (see [`VplPower`]); empty: not kept.
+    power: &'s mut [f32],
 }
 
-impl RowSums {
-    /// Adds the clamped contribution `c` (and the share `full − c` the clamp removed) to pixel x.
-    fn add_light(&mut self, x: u32, c: Vec3, full: Vec3) {
+impl RowSums<'_> {
+    /// Adds VPL i's clamped contribution `c` (and the share `full − c` the clamp removed) to
+    /// pixel x.
+    #[inline(always)]
+    fn add_light(&mut self, x: u32, i: u32, c: Vec3, full: Vec3) {
         self.sum[x as usize] += c;
         self.removed[x as usize] += full - c;
+        if let Some(p) = self.power.get_mut(i as usize) {
+            *p += luminance(c) * self.scale[x as usize];
+        }
     }
 
-    fn add(&mut self, (x, c, full, _, _): Pending) {
-        self.add_light(x, c, full);
+    fn add(&mut self, (x, i, c, full, _, _): Pending) {
+        self.add_light(x, i, c, full);
     }
 
     /// Traces the pending shadow rays as one packet (a lone ray as a single ray).
     fn flush(&mut self, accel: &Accel, st: &mut RayStats) {
         st.shadow += self.pending.len() as u64;
         let mut pending = std::mem::take(&mut self.pending);
-        if let [(_, _, _, o, d)] = pending[..] {
+        if let [(_, _, _, _, o, d)] = pending[..] {
             if !accel.occluded(o, d, SHADOW_T_MAX) {
                 self.add(pending[0]);
             }
         } else if !pending.is_empty() {
-            let packet = RayPacket::<F8>::from_fn(|j| pending.get(j).map(|p| LaneRay::new(p.3, p.4, SHADOW_T_MAX)));
+            let packet = RayPacket::<F8>::from_fn(|j| pending.get(j).map(|p| LaneRay::new(p.4, p.5, SHADOW_T_MAX)));
             let blocked = accel.occluded_packet(&packet);
             for (j, p) in pending.iter().enumerate() {
                 if blocked >> j & 1 == 0 {
@@ -148,7 +174,7 @@ impl<T: Copy + Default> ShadowBatch<T> {
         accel: &Accel,
         cache: &mut [u32],
         st: &mut RayStats,
-        visible: impl FnMut(T),
+        visible: impl FnMut(u32, T),
     ) {
         let k = self.len;
         (self.rays[k], self.slot[k], self.item[k]) = (LaneRay::new(o, target - o, SHADOW_T_MAX), slot, item);
@@ -158,11 +184,17 @@ impl<T: Copy + Default> ShadowBatch<T> {
         }
     }
 
-    /// Traces the queued rays and calls `visible` with the payload of each unblocked ray, in
-    /// queue order. Ray k starts from the shadow cache `cache[slot k]` as it was when the batch
+    /// Traces the queued rays and calls `visible` with the cache slot and payload of each
+    /// unblocked ray, in queue order. Ray k starts from the shadow cache `cache[slot k]` as it was when the batch
     /// was traced (rays of one batch do not see each other's occluders); a blocked ray then
     /// leaves its occluder there, in queue order. The answers do not depend on the cache.
-    pub(crate) fn trace(&mut self, accel: &Accel, cache: &mut [u32], st: &mut RayStats, mut visible: impl FnMut(T)) {
+    pub(crate) fn trace(
+        &mut self,
+        accel: &Accel,
+        cache: &mut [u32],
+        st: &mut RayStats,
+        mut visible: impl FnMut(u32, T),
+    ) {
         let n = self.len;
         if n == 0 {
             return;
@@ -182,7 +214,7 @@ impl<T: Copy + Default> ShadowBatch<T> {
             if blocked >> k & 1 != 0 {
                 cache[self.slot[k] as usize] = hints[k];
             } else {
-                visible(self.item[k]);
+                visible(self.slot[k], self.item[k]);
             }
         }
         self.len = 0;
@@ -598,7 +630,7 @@ impl<'a> Gatherer<'a> {
             _ => unshadowed(vpls, i, r, self.g_max)?,
         };
         let o = pt.origin_towards(target);
-        Some((x, c, full, o, target - o))
+        Some((x, i as u32, c, full, o, target - o))
     }
 
     /// Which prepared receivers [`Gatherer::row`] also needs the receiver of.
@@ -617,6 +649,8 @@ impl<'a> Gatherer<'a> {
     /// `prepared`, when given, holds the row's receivers already prepared; `receivers` then
     /// needs only those that [`Gatherer::keeps_receiver`] keeps. With the clamp compensated,
     /// `compensation` (when given) receives each pixel's residual alone (it is in `out` too).
+    /// `power`, unless empty, has one slot per VPL and receives the luminance each brought to
+    /// the row (compensation excluded; see [`VplPower`]).
     pub(crate) fn row(
         &self,
         y: u32,
@@ -624,6 +658,7 @@ impl<'a> Gatherer<'a> {
         prepared: Option<&[Option<Prepared>]>,
         out: &mut [Vec3],
         compensation: Option<&mut [Vec3]>,
+        power: &mut [f32],
     ) -> RowGathered {
         let Gatherer { scene, accel, vpls, inter, g_max, min_d2, .. } = *self;
         let w = out.len() as u32;
@@ -644,6 +679,8 @@ impl<'a> Gatherer<'a> {
             sum: vec![Vec3::ZERO; w as usize],
             removed: vec![Vec3::ZERO; w as usize],
             pending: Vec::with_capacity(F8::LANES),
+            scale: if power.is_empty() { Vec::new() } else { (0..w).map(|x| inter.scales[subsets.of(x)]).collect() },
+            power,
         };
         match self.tracing {
             Tracing::Single | Tracing::PrimaryPackets => {
@@ -651,6 +688,7 @@ impl<'a> Gatherer<'a> {
                 let mut occluders = vec![NO_OCCLUDER; vpls.len()];
                 // Pixel, clamped and unclamped contribution of each queued ray.
                 let mut batch = ShadowBatch::<(u32, Vec3, Vec3)>::new();
+                let add = |acc: &mut RowSums, i: u32, (x, c, full): (u32, Vec3, Vec3)| acc.add_light(x, i, c, full);
                 for x in 0..w {
                     // Prepared here, pixel by pixel, unless the G-buffer did it: collected into
                     // a row first, each one was copied through memory (measured in
@@ -691,7 +729,7 @@ impl<'a> Gatherer<'a> {
                                 let target = vpls.position[i as usize];
                                 let o = pt.origin_towards(target);
                                 let (c, full) = lc.lane(j);
-                                let add = |(x, c, full)| acc.add_light(x, c, full);
+                                let add = |i, item| add(&mut acc, i, item);
                                 batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                             }
                         }
@@ -700,14 +738,14 @@ impl<'a> Gatherer<'a> {
                     // Any other receiver or VPL: the general kernels, the same batched rays.
                     let r = receivers[x as usize].as_ref().expect("a receiver kept for the general kernels");
                     for &i in &inter.subsets[subsets.of(x)] {
-                        if let Some((x, c, full, o, _)) = self.candidate(pt, r, x, i as usize) {
-                            let add = |(x, c, full)| acc.add_light(x, c, full);
+                        if let Some((x, _, c, full, o, _)) = self.candidate(pt, r, x, i as usize) {
+                            let add = |i, item| add(&mut acc, i, item);
                             let target = vpls.position[i as usize];
                             batch.push(o, target, i, (x, c, full), accel, &mut occluders, &mut st, add);
                         }
                     }
                 }
-                batch.trace(accel, &mut occluders, &mut st, |(x, c, full)| acc.add_light(x, c, full));
+                batch.trace(accel, &mut occluders, &mut st, |i, item| add(&mut acc, i, item));
             }
             Tracing::SharedOrigin => {
                 for x in 0..w {
@@ -747,6 +785,7 @@ impl<'a> Gatherer<'a> {
             energy.removed += (luminance(removed) * s) as f64;
             *o = sum * s;
         }
+        let power = acc.power;
         // Regional VPLs (see `Interleave::regional`): weight 1 at the pixels of their region,
         // their home subset's scale at that subset's pixels outside it; single rays.
         if !inter.regional.is_empty() {
@@ -766,6 +805,9 @@ impl<'a> Gatherer<'a> {
                         energy.kept += (luminance(c) * weight) as f64;
                         energy.removed += (luminance(full - c) * weight) as f64;
                         out[x as usize] += c * weight;
+                        if let Some(p) = power.get_mut(i) {
+                            *p += luminance(c) * weight;
+                        }
                     }
                 };
                 let [x0, y0, x1, y1] = reg.rect;
@@ -855,7 +897,7 @@ pub fn gather(
         .par_chunks_mut(w.max(1))
         .zip(gbuf.receivers.par_chunks(w.max(1)))
         .enumerate()
-        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, None, out, None))
+        .map(|(y, (out, receivers))| gatherer.row(y as u32, receivers, None, out, None, &mut []))
         .collect();
     let mut energy = GatherEnergy::default();
     for r in rows {

@@ -62,6 +62,9 @@ pub struct ViewArgs {
     /// The VPL frame pipeline's flags.
     #[command(flatten)]
     pub gather: GatherArgs,
+    /// The Metropolis samplers' flags.
+    #[command(flatten)]
+    pub mir: crate::options::MirArgs,
     /// Maximum number of scattering events of the sampler's paths.
     #[arg(long, default_value_t = 128)]
     pub max_depth: u32,
@@ -179,7 +182,7 @@ impl ViewArgs {
     /// Checks the flags and builds the options (the camera path file is read here).
     pub fn options(&self) -> Result<ViewOptions, ViewError> {
         let bad = |m: String| Err(ViewError::Options(m));
-        if let Err(e) = self.gather.validate() {
+        if let Err(e) = self.gather.validate().and_then(|_| self.mir.validate()) {
             return bad(e);
         }
         if self.max_depth > 100_000 {
@@ -223,6 +226,7 @@ impl ViewArgs {
             session: SessionSettings {
                 sampler: self.vpl_sampler.unwrap_or_else(default_sampler),
                 max_depth: self.max_depth,
+                mir: self.mir.config(self.max_depth),
                 frame: self.gather.frame_settings(),
                 seed: self.seed,
                 fresh_chains: self.fresh_chains,

@@ -53,7 +53,7 @@ use super::reuse;
 use crate::accel::Accel;
 use crate::frame::{self, FrameSettings, FrameStats};
 use crate::gather::{CameraRays, GBufferUse, JitterSequence};
-use crate::options::{FilterFade, VplSamplerArg};
+use crate::options::{FilterFade, SamplerConfig, VplSamplerArg};
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
 use crate::vpl::{SamplerStats, VplSampler, VplSet};
@@ -134,6 +134,8 @@ pub struct SessionSettings {
     pub sampler: VplSamplerArg,
     /// Maximum path depth of the sampler.
     pub max_depth: u32,
+    /// The Metropolis samplers' settings (their `max_depth` is the one above).
+    pub mir: SamplerConfig,
     /// The frame pipeline.
     pub frame: FrameSettings,
     /// Base seed; frame i uses [`frame_seed`]`(seed, i)`.
@@ -176,12 +178,20 @@ impl Ahead {
     }
 }
 
+impl SessionSettings {
+    /// The sampler these settings choose, new.
+    fn build_sampler(&self) -> Box<dyn crate::vpl::VplSampler> {
+        self.sampler.build_with(&SamplerConfig { max_depth: self.max_depth, ..self.mir })
+    }
+}
+
 impl Default for SessionSettings {
     /// `mirage view`'s defaults (its flags' defaults, tested there).
     fn default() -> Self {
         SessionSettings {
             sampler: super::args::default_sampler(),
             max_depth: 128,
+            mir: SamplerConfig { max_depth: 128, ..SamplerConfig::default() },
             // The clamp compensated (key B), at one pixel in two: frame time.
             frame: FrameSettings { compensate: true, compensation_stride: 2, ..FrameSettings::interactive() },
             seed: 0,
@@ -250,7 +260,7 @@ struct SampledAhead {
 impl Session {
     /// A session rendering `scene` through `camera`.
     pub fn new(scene: Scene, accel: Accel, camera: Camera, settings: SessionSettings) -> Self {
-        let sampler = settings.sampler.build(settings.max_depth);
+        let sampler = settings.build_sampler();
         Session {
             scene,
             accel,
@@ -354,7 +364,7 @@ impl Session {
     /// Replaces the sampler (a fresh one: chains do not carry over between strategies).
     pub fn set_sampler(&mut self, arg: VplSamplerArg) {
         self.settings.sampler = arg;
-        self.sampler = arg.build(self.settings.max_depth);
+        self.sampler = self.settings.build_sampler();
         self.history.clear();
         self.restart();
     }

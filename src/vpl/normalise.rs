@@ -87,7 +87,7 @@ impl Measure {
                             }
                         });
                     }
-                    let mut add = |v: VisibilitySample| {
+                    let mut add = |_, v: VisibilitySample| {
                         let i = v.probe as usize;
                         sums[v.lane as usize].add(v, pixels[i], weights[i], *cell)
                     };

@@ -193,23 +193,28 @@ impl VplSet {
         cos_factor(self.normal[i], self.flags[i], w)
     }
 
+    /// VPL `i`.
+    pub fn get(&self, i: usize) -> Vpl {
+        Vpl {
+            position: self.position[i],
+            normal: self.normal[i],
+            radiance: self.radiance[i],
+            lobe: match self.lobe[i] {
+                NO_LOBE => None,
+                l => Some(self.lobes[l as usize]),
+            },
+            count: self.count[i],
+            flags: self.flags[i],
+            length: self.length[i],
+            group: self.group[i],
+        }
+    }
+
     /// Appends all VPLs of `other`, offsetting its groups.
     pub fn append(&mut self, other: &VplSet) {
         let base = self.groups;
         for i in 0..other.len() {
-            self.push(Vpl {
-                position: other.position[i],
-                normal: other.normal[i],
-                radiance: other.radiance[i],
-                lobe: match other.lobe[i] {
-                    NO_LOBE => None,
-                    l => Some(other.lobes[l as usize]),
-                },
-                count: other.count[i],
-                flags: other.flags[i],
-                length: other.length[i],
-                group: base + other.group[i],
-            });
+            self.push(Vpl { group: base + other.group[i], ..other.get(i) });
         }
         self.groups = base + other.groups;
     }
