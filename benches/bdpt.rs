@@ -2,11 +2,11 @@
 //! connections) per second on cornell and glass-sphere. `cargo bench --bench bdpt`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::load::builtin;
 use mirage::offline::bdpt::BdptOptions;
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn bench_bdpt(c: &mut Criterion) {
@@ -21,7 +21,7 @@ fn bench_bdpt(c: &mut Criterion) {
         group.bench_function(format!("{name}/128x128x{spp}spp"), |b| {
             let s = OfflineSettings { budget: Budget::Samples(spp), ..OfflineSettings::preview() };
             let o = BdptOptions { max_depth: s.max_depth, only: None, path_edges: None };
-            b.iter(|| offline::render_bdpt(&scene, &accel, &s, &o, &ProgressBar::hidden()))
+            b.iter(|| offline::render_bdpt(&scene, &accel, &s, &o, &NoProgress))
         });
     }
     group.finish();

@@ -2,10 +2,10 @@
 //! sphere field (2 threads, the machine's cores). `cargo bench --bench pt`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::load::builtin;
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn bench_pt(c: &mut Criterion) {
@@ -19,7 +19,7 @@ fn bench_pt(c: &mut Criterion) {
         group.throughput(Throughput::Elements(128 * 128 * spp as u64));
         group.bench_function(format!("{name}/128x128x{spp}spp"), |b| {
             let s = OfflineSettings { budget: Budget::Samples(spp), ..OfflineSettings::preview() };
-            b.iter(|| offline::render_pt(&scene, &accel, &s, &ProgressBar::hidden()))
+            b.iter(|| offline::render_pt(&scene, &accel, &s, &NoProgress))
         });
     }
     group.finish();

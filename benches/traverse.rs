@@ -263,7 +263,7 @@ fn bench_traverse(c: &mut Criterion) {
     for (name, desc) in scenes() {
         let t0 = std::time::Instant::now();
         let scene = Scene::from_desc(desc, &CameraSettings::default()).unwrap();
-        let accel = Accel::build(&scene.mesh);
+        let accel = Accel::build_with_obvhs(&scene.mesh);
         eprintln!("{name}: {} triangles, {:?}, built in {:.2?}", scene.mesh.len(), accel, t0.elapsed());
         for set in ray_sets(&scene, &accel) {
             let single = set.single();

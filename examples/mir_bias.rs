@@ -6,11 +6,11 @@
 //! ```
 //! Arguments: scene, width, height, frames per seed, seeds, pt samples per pixel.
 
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::frame::{FrameSettings, render_frame};
 use mirage::load::builtin;
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 use mirage::stats::RayStats;
 use mirage::vpl::metropolis::{Chain, Mir, MirSettings, estimate_pc};
@@ -84,7 +84,7 @@ fn main() {
     let mut refs = vec![];
     for b in 0..4 {
         let st = OfflineSettings { budget: Budget::Samples(spp / 4), seed: 77 + b, ..OfflineSettings::preview() };
-        refs.push(offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image().mean_luminance());
+        refs.push(offline::render_pt(&s, &a, &st, &NoProgress).film.image().mean_luminance());
     }
     let (reference, se, _) = stats(&refs);
     println!("{name} {w}x{h}: pt mean luminance {reference:.5} ± {se:.5} ({spp} spp)");
@@ -113,10 +113,7 @@ fn main() {
             .map(|b| {
                 let st =
                     OfflineSettings { budget: Budget::Samples(spp / 4), seed: 91 + b, ..OfflineSettings::preview() };
-                offline::render_pt_of_length(&s, &a, &st, Some((2, 17)), &ProgressBar::hidden())
-                    .film
-                    .image()
-                    .mean_luminance()
+                offline::render_pt_of_length(&s, &a, &st, Some((2, 17)), &NoProgress).film.image().mean_luminance()
             })
             .collect();
         let (m, se, _) = stats(&pts);
@@ -130,7 +127,7 @@ fn main() {
                     &a,
                     &st,
                     &mirage::offline::bdpt::BdptOptions { max_depth: 128, only: None, path_edges: None },
-                    &ProgressBar::hidden(),
+                    &NoProgress,
                 )
                 .film
                 .image()

@@ -4,8 +4,8 @@
 
 use std::time::{Duration, Instant};
 
+use crate::progress::Progress;
 use glam::Vec3;
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use crate::accel::Accel;
@@ -435,7 +435,7 @@ pub fn render_progressive(
     sampler: &mut dyn VplSampler,
     settings: &FrameSettings,
     acc: Accumulation,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> (RenderOutput, FrameStats) {
     let Accumulation { budget, seed, aovs, .. } = acc;
     let settings = &FrameSettings { compensation_aov: aovs && settings.compensate, ..*settings };
@@ -484,7 +484,7 @@ pub fn render_progressive(
             break;
         }
     }
-    progress.finish_and_clear();
+    progress.finish();
     if fade {
         film.blend_pixels(&unfiltered, acc.filter_weight(frames));
     }
@@ -498,6 +498,7 @@ mod tests {
     use super::*;
     use crate::gather::{GBufferUse, JitterSequence};
     use crate::load::builtin;
+    use crate::progress::NoProgress;
     use crate::scene::CameraSettings;
     use crate::vpl::sir::Sir;
 
@@ -554,7 +555,7 @@ mod tests {
         let frames = 6;
         let run = |settings: &FrameSettings, fade: Option<u32>| {
             let acc = Accumulation { budget: Budget::Samples(frames), seed: 11, aovs: false, filter_fade: fade };
-            render_progressive(&scene, &accel, &mut Sir::new(4), settings, acc, &ProgressBar::hidden()).0.film.image()
+            render_progressive(&scene, &accel, &mut Sir::new(4), settings, acc, &NoProgress).0.film.image()
         };
         let filtered = run(&settings, None);
         let unfiltered = run(&FrameSettings { filter: None, ..settings }, None);

@@ -9,31 +9,57 @@
 //!                                  └──offline──► pt | bdpt | pssmlt ───────────────────► film
 //! ```
 //!
-//! Modules in flow order: [`load`] (files → [`load::SceneDesc`]), [`scene`] (validated
-//! immutable [`scene::Scene`]), [`accel`] (the only user of obvhs), [`offline`] (reference
-//! estimators), [`film`] (accumulation, pixel filters, metrics, tone mapping) and [`output`]
-//! (EXR and PNG). Leaves: [`sampling`], [`bsdf`], [`color`].
+//! Modules (docs/design.md §1), each importing only those listed before it: the leaves
+//! [`color`], [`sampling`], [`simd`], [`stats`], [`progress`], [`bsdf`], [`film`] (accumulation, pixel
+//! filters, metrics, tone mapping) and [`filter`] (the discontinuity buffer, an image
+//! operation); then the pipeline [`load`] (files → [`load::SceneDesc`]), [`scene`] (validated
+//! immutable [`scene::Scene`]), [`accel`] (the BVH and ray queries; the only user of obvhs),
+//! [`path`] (vertices, walks, connections), [`offline`] (pt, bdpt, pssmlt), [`vpl`] (VPL samplers
+//! and the VPL-to-receiver kernels), [`gather`], [`frame`] (one VPL frame), [`output`] (EXR,
+//! PNG); then the command line's [`options`], [`render`], [`report`] and the window, [`view`].
 #![deny(missing_docs)]
 
-pub mod accel;
-pub mod bsdf;
+// Leaves.
 pub mod color;
-pub mod film;
-pub mod filter;
-pub mod frame;
-pub mod gather;
-pub mod offline;
-pub mod options;
-pub mod output;
-pub mod path;
-pub mod render;
-pub mod report;
-
-pub mod load;
 
 pub mod sampling;
-pub mod scene;
+
 pub mod simd;
+
 pub mod stats;
-pub mod view;
+
+pub mod progress;
+
+pub mod bsdf;
+
+pub mod film;
+
+pub mod filter;
+
+// The pipeline.
+pub mod load;
+
+pub mod scene;
+
+pub mod accel;
+
+pub mod path;
+
+pub mod offline;
+
 pub mod vpl;
+
+pub mod gather;
+
+pub mod frame;
+
+pub mod output;
+
+// The command line and the window.
+pub mod options;
+
+pub mod render;
+
+pub mod report;
+
+pub mod view;

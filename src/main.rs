@@ -1,4 +1,4 @@
-//! The `mirage` command line: `render`, `info` and `diff`.
+//! The `mirage` command line: `render`, `view`, `info`, `converge`, `samplers`, `png` and `diff`.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -35,6 +35,9 @@ enum Command {
     Info {
         /// Scene file or built-in scene name (default: the built-in Cornell box).
         scene: Option<String>,
+        /// Lights added to the scene (as in `render`).
+        #[command(flatten)]
+        lights: mirage::options::LightArgs,
     },
     /// Error-vs-time report: relMSE against a cached path-traced reference after each time
     /// budget, for every method; writes markdown and an SVG plot per scene.
@@ -134,7 +137,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => cmd_render(&args),
         Command::View(args) => mirage::view::run(&args).map_err(|e| anyhow::anyhow!(e)),
-        Command::Info { scene } => cmd_info(scene.as_deref()),
+        Command::Info { scene, lights } => cmd_info(scene.as_deref(), &lights),
         Command::Diff { a, b, map } => cmd_diff(&a, &b, map.as_deref()),
         Command::Png { input, output, tonemap, exposure } => cmd_png(&input, output.as_deref(), tonemap, exposure),
         Command::Converge(args) => cmd_report(&args, false),
@@ -149,16 +152,31 @@ fn main() -> ExitCode {
     }
 }
 
-fn progress_bar(quiet: bool) -> ProgressBar {
+/// The terminal progress bar the library reports to ([`mirage::progress::Progress`]).
+struct Bar(ProgressBar);
+
+impl mirage::progress::Progress for Bar {
+    fn set_length(&self, len: u64) {
+        self.0.set_length(len);
+    }
+    fn set_position(&self, pos: u64) {
+        self.0.set_position(pos);
+    }
+    fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+fn progress_bar(quiet: bool) -> Bar {
     if quiet {
-        return ProgressBar::hidden();
+        return Bar(ProgressBar::hidden());
     }
     let pb = ProgressBar::new(1);
     pb.set_style(
         ProgressStyle::with_template("{spinner} {msg} [{elapsed_precise}] {wide_bar} {percent:>3}% (eta {eta})")
             .expect("valid progress template"),
     );
-    pb
+    Bar(pb)
 }
 
 fn cmd_render(args: &RenderArgs) -> Result<()> {
@@ -187,7 +205,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create output directory", dir.display()))?;
     }
     let pb = progress_bar(args.quiet);
-    pb.set_message(format!("{} {}", options.mode.name(), source.name()));
+    pb.0.set_message(format!("{} {}", options.mode.name(), source.name()));
     let render::Rendered { out, frame: frame_stats, pssmlt } = render::render(&scene, &accel, &options, &pb);
     let image = out.film.image();
     let aovs = out.film.aov_images();
@@ -323,9 +341,10 @@ fn clamp_summary(e: &mirage::gather::GatherEnergy, compensated: bool) -> String 
     }
 }
 
-fn cmd_info(scene: Option<&str>) -> Result<()> {
+fn cmd_info(scene: Option<&str>, lights: &mirage::options::LightArgs) -> Result<()> {
+    lights.validate().map_err(|e| anyhow::anyhow!(e))?;
     let source = SceneSource::from_arg(scene);
-    let scene = render::load_scene(&source, &CameraSettings::default())?;
+    let scene = render::load_scene_lit(&source, &CameraSettings::default(), lights)?;
     for w in &scene.warnings {
         eprintln!("mirage: warning: {w}");
     }
@@ -408,6 +427,15 @@ fn cmd_info(scene: Option<&str>) -> Result<()> {
             100.0 * luminance(power) / luminance(total).max(1e-30)
         );
     }
+    let accel = Accel::build(&scene.mesh);
+    let (mesh, bvh) = (scene.mesh.heap_bytes(), accel.heap_bytes());
+    let mib = |b: usize| b as f64 / (1 << 20) as f64;
+    println!(
+        "memory     mesh {:.1} MiB, BVH {:.1} MiB: {:.0} bytes a triangle (kept while rendering)",
+        mib(mesh),
+        mib(bvh),
+        (mesh + bvh) as f64 / scene.mesh.len().max(1) as f64
+    );
     Ok(())
 }
 

@@ -449,9 +449,16 @@ pub struct CameraArgs {
     pub focus_at: Option<Vec2>,
 }
 
-/// Lights added from the command line (`render` and `view`): the sun and the sky.
+/// Lights added from the command line (`render` and `view`): a panel over the model, the sun
+/// and the sky.
 #[derive(Args, Clone, Debug, Default)]
 pub struct LightArgs {
+    /// Add an area light for geometry-only models (e.g. ../shared/models/sponza.obj): a
+    /// downward-facing panel of radiance LE just above the model's bounds, covering its
+    /// footprint like a sky over an open courtyard (+y is up). Without a camera in the file,
+    /// the camera is placed inside, looking along the longer horizontal axis.
+    #[arg(long, value_name = "LE", num_args = 0..=1, default_missing_value = "1", allow_negative_numbers = true)]
+    pub add_light: Option<f32>,
     /// Add a sun "AZIMUTH,ELEVATION,ILLUMINANCE": azimuth in degrees from +z towards +x,
     /// elevation in degrees above the horizon (+y is up), illuminance in W/m² (lux) on a surface
     /// facing it, white.
@@ -473,10 +480,23 @@ pub struct LightArgs {
 }
 
 impl LightArgs {
+    /// Checks the flags that no scene check covers.
+    pub fn validate(&self) -> Result<(), String> {
+        if let Some(le) = self.add_light
+            && !(le > 0.0 && le.is_finite())
+        {
+            return Err(format!("--add-light {le} must be a positive radiance"));
+        }
+        Ok(())
+    }
+
     /// Adds the requested lights to `desc` (reading the environment file); warnings about the
     /// file go into the scene's warnings.
     pub fn apply(&self, desc: &mut crate::load::SceneDesc) -> Result<(), crate::load::LoadError> {
         use crate::load::{EnvironmentDesc, PunctualDesc};
+        if let Some(le) = self.add_light {
+            crate::load::add_sky_light(desc, Vec3::splat(le));
+        }
         if let Some(Vec3 { x: az, y: el, z: e }) = self.sun {
             let (az, el) = (az.to_radians(), el.to_radians());
             let towards = Vec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
@@ -664,6 +684,7 @@ impl RenderArgs {
             }
         }
         self.gather.validate().map_err(OptionsError)?;
+        self.lights.validate().map_err(OptionsError)?;
         let vpl_sampler = match (self.mode, self.vpl_sampler) {
             (Mode::Mir, None) => VplSamplerArg::Mtmh,
             (_, None) => VplSamplerArg::Sir,

@@ -5,8 +5,8 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use crate::progress::Progress;
 use glam::{Vec2, vec2};
-use indicatif::ProgressBar;
 
 use crate::accel::Accel;
 use crate::frame::{self, FrameStats};
@@ -126,7 +126,7 @@ pub struct Rendered {
 }
 
 /// Runs the requested mode.
-pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &ProgressBar) -> Rendered {
+pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &dyn Progress) -> Rendered {
     let plain = |out| Rendered { out, frame: None, pssmlt: None };
     match options.mode {
         Mode::Pt => plain(offline::render_pt(scene, accel, &options.offline, progress)),
@@ -155,7 +155,7 @@ pub fn render_strategy(
     accel: &Accel,
     options: &RenderOptions,
     (s, t): (usize, usize),
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> (RenderOutput, RenderOutput) {
     let run = |weighted| {
         let opts = BdptOptions {

@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use indicatif::ProgressBar;
+use crate::progress::NoProgress;
 
 use crate::accel::Accel;
 use crate::film::Image;
@@ -160,7 +160,7 @@ pub fn run(
     seed: u64,
     frame_settings: &FrameSettings,
 ) -> Run {
-    let hidden = ProgressBar::hidden();
+    let hidden = NoProgress;
     let offline = OfflineSettings { budget, seed, ..OfflineSettings::preview() };
     match method {
         Method::Pt => {
@@ -244,7 +244,7 @@ pub fn reference(
         std::fs::create_dir_all(dir)
             .map_err(|e| output::SaveError { path: dir.to_path_buf(), message: e.to_string() })?;
         let settings = OfflineSettings { budget: Budget::Samples(half_spp), seed, ..OfflineSettings::preview() };
-        let img = offline::render_pt(scene, accel, &settings, &ProgressBar::hidden()).film.image();
+        let img = offline::render_pt(scene, accel, &settings, &NoProgress).film.image();
         output::write_exr(&path, &img, Default::default())?;
         halves.push(img);
     }

@@ -3,11 +3,11 @@
 mod common;
 
 use common::{Estimate, assert_agree};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::film::Image;
 use mirage::load::builtin;
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn cornell_scene(scale: f32) -> Scene {
@@ -20,7 +20,7 @@ fn pt_batches(scene: &Scene, seed0: u64, batches: u64, spp: u32) -> Estimate {
     let images: Vec<Image> = (0..batches)
         .map(|b| {
             let s = OfflineSettings { budget: Budget::Samples(spp), seed: seed0 + b, ..OfflineSettings::preview() };
-            let img = offline::render_pt(scene, &accel, &s, &ProgressBar::hidden()).film.image();
+            let img = offline::render_pt(scene, &accel, &s, &NoProgress).film.image();
             assert_eq!(img.non_finite_count(), 0, "NaN/Inf pixel");
             img
         })
@@ -54,7 +54,7 @@ fn same_seed_gives_bit_identical_images_with_one_and_two_threads() {
     let s = OfflineSettings { budget: Budget::Samples(8), seed: 42, ..OfflineSettings::preview() };
     let render = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| offline::render_pt(&scene, &accel, &s, &ProgressBar::hidden()).film.image())
+        pool.install(|| offline::render_pt(&scene, &accel, &s, &NoProgress).film.image())
     };
     let one = render(1);
     let two = render(2);
@@ -62,6 +62,6 @@ fn same_seed_gives_bit_identical_images_with_one_and_two_threads() {
         one.data.iter().zip(&two.data).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits))
     );
     // A different seed gives a different image (the seed is actually used).
-    let other = offline::render_pt(&scene, &accel, &OfflineSettings { seed: 43, ..s.clone() }, &ProgressBar::hidden());
+    let other = offline::render_pt(&scene, &accel, &OfflineSettings { seed: 43, ..s.clone() }, &NoProgress);
     assert_ne!(other.film.image(), one);
 }

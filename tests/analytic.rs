@@ -2,10 +2,10 @@
 
 mod common;
 
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::load::builtin;
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 /// In a closed diffuse enclosure where every surface emits Le and reflects ρ, the radiance is
@@ -15,7 +15,7 @@ fn furnace_radiance_is_le_over_one_minus_albedo() {
     let scene = Scene::from_desc(builtin::furnace(), &CameraSettings::default()).unwrap();
     let accel = Accel::build(&scene.mesh);
     let settings = OfflineSettings { budget: Budget::Samples(256), ..OfflineSettings::preview() };
-    let out = offline::render_pt(&scene, &accel, &settings, &ProgressBar::hidden());
+    let out = offline::render_pt(&scene, &accel, &settings, &NoProgress);
     let img = out.film.image();
     let mean = img.mean();
     assert_eq!(img.non_finite_count(), 0);

@@ -5,13 +5,13 @@ mod common;
 
 use common::{Estimate, assert_agree};
 use glam::{Vec3, vec2, vec3};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::film::{FilmTile, Image};
 use mirage::load::SceneDesc;
 use mirage::load::builtin::{self, Builder, cuboid, quad};
 use mirage::offline::bdpt::{self, BdptOptions, StrategyFilter};
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::sampling::IndependentSampler;
 use mirage::scene::{CameraSettings, Scene};
 use mirage::stats::RayStats;
@@ -39,7 +39,7 @@ fn batches(k: u64, mut render: impl FnMut(u64) -> Image) -> Estimate {
 
 fn bdpt_estimate(s: &Scene, a: &Accel, seed: u64, k: u64, spp: u32, opts: BdptOptions) -> Estimate {
     batches(k, |b| {
-        offline::render_bdpt(s, a, &settings(seed + b, spp, opts.max_depth), &opts, &ProgressBar::hidden()).film.image()
+        offline::render_bdpt(s, a, &settings(seed + b, spp, opts.max_depth), &opts, &NoProgress).film.image()
     })
 }
 
@@ -53,9 +53,7 @@ fn pt_estimate(
     edges: Option<(u32, u32)>,
 ) -> Estimate {
     batches(k, |b| {
-        offline::render_pt_of_length(s, a, &settings(seed + b, spp, max_depth), edges, &ProgressBar::hidden())
-            .film
-            .image()
+        offline::render_pt_of_length(s, a, &settings(seed + b, spp, max_depth), edges, &NoProgress).film.image()
     })
 }
 
@@ -66,7 +64,7 @@ fn all(max_depth: u32) -> BdptOptions {
 #[test]
 fn bdpt_furnace_radiance_is_le_over_one_minus_albedo() {
     let (s, a) = scene(builtin::furnace(), 32, 32);
-    let out = offline::render_bdpt(&s, &a, &settings(7, 64, 128), &all(128), &ProgressBar::hidden());
+    let out = offline::render_bdpt(&s, &a, &settings(7, 64, 128), &all(128), &NoProgress);
     let mean = out.film.image().mean();
     for c in 0..3 {
         assert!((mean[c] - 2.0).abs() < 0.02, "channel {c}: {} (expected 2 within 1 %)", mean[c]);

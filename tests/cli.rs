@@ -153,6 +153,29 @@ fn bad_inputs_fail_cleanly_naming_the_file() {
     let dark = dir.join("dark.obj");
     std::fs::write(&dark, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     assert_clean_failure(&run(&dark), "dark.obj");
+    // ... which `--add-light` lights (a panel over the model, a camera inside it).
+    let room = dir.join("room.obj");
+    std::fs::write(&room, "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 1 1 0\nv 1 1 1\nf 1 4 3 2\nf 2 3 6 5\n").unwrap();
+    let lit_exr = dir.join("room.exr");
+    let lit = mirage(&[
+        "render",
+        room.to_str().unwrap(),
+        "--add-light",
+        "--spp",
+        "4",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--quiet",
+        "-o",
+        lit_exr.to_str().unwrap(),
+    ]);
+    assert!(lit.status.success(), "--add-light renders a geometry-only model: {}", stderr(&lit));
+    let img = mirage::output::read_exr(&lit_exr).unwrap();
+    assert_eq!(img.non_finite_count(), 0);
+    assert!(img.mean_luminance() > 0.0, "the added panel lights the room");
+    assert_clean_failure(&mirage(&["render", room.to_str().unwrap(), "--add-light", "0"]), "--add-light");
 
     // Unknown required glTF extension.
     let text = String::from_utf8(json).unwrap();

@@ -5,7 +5,6 @@ mod common;
 
 use common::{Estimate, assert_agree_blocks};
 use glam::{Vec3, vec3};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::film::Image;
 use mirage::filter::{DiscontinuitySettings, discontinuity_filter};
@@ -14,6 +13,7 @@ use mirage::load::SceneDesc;
 use mirage::load::builtin::{self, Builder, cuboid, quad};
 use mirage::offline::{self, Budget, OfflineSettings};
 use mirage::options::VplSamplerArg;
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn scene(desc: SceneDesc, w: u32, h: u32) -> (Scene, Accel) {
@@ -45,7 +45,7 @@ fn ir_estimate(
                     aovs: false,
                     filter_fade: None,
                 },
-                &ProgressBar::hidden(),
+                &NoProgress,
             );
             let img = out.film.image();
             assert_eq!(img.non_finite_count(), 0);
@@ -64,7 +64,7 @@ fn pt_estimate(s: &Scene, a: &Accel, batches: u64, spp: u32, seed: u64) -> Estim
                 max_depth: 64,
                 ..OfflineSettings::preview()
             };
-            offline::render_pt(s, a, &st, &ProgressBar::hidden()).film.image()
+            offline::render_pt(s, a, &st, &NoProgress).film.image()
         })
         .collect();
     Estimate::from_batches(&imgs)

@@ -5,7 +5,6 @@ mod common;
 
 use common::{Estimate, assert_agree_blocks};
 use glam::{Vec3, vec3};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::color::luminance;
 use mirage::film::Image;
@@ -15,6 +14,7 @@ use mirage::load::builtin::{self, Builder, cuboid, quad, rect_with_holes};
 use mirage::offline::pt::PathFilter;
 use mirage::offline::{self, Budget, OfflineSettings};
 use mirage::options::{KernelArg, SamplerConfig, VplSamplerArg};
+use mirage::progress::NoProgress;
 use mirage::sampling::Distribution1D;
 use mirage::scene::{CameraSettings, Scene};
 use mirage::stats::RayStats;
@@ -30,7 +30,7 @@ fn scene(desc: SceneDesc, w: u32, h: u32) -> (Scene, Accel) {
 
 fn pt(s: &Scene, a: &Accel, spp: u32, seed: u64, edges: Option<(u32, u32)>) -> Image {
     let st = OfflineSettings { budget: Budget::Samples(spp), seed, max_depth: 64, ..OfflineSettings::preview() };
-    offline::render_pt_of_length(s, a, &st, edges, &ProgressBar::hidden()).film.image()
+    offline::render_pt_of_length(s, a, &st, edges, &NoProgress).film.image()
 }
 
 /// P_c, estimated from independent bidirectional samples, equals the total image luminance the
@@ -77,7 +77,7 @@ fn mir_estimate(
             let mut sampler = kind.build_with(&SamplerConfig { kernel, ..Default::default() });
             let acc =
                 Accumulation { budget: Budget::Samples(frames), seed: seed + 1000 * b, aovs: false, filter_fade: None };
-            let (out, _) = frame::render_progressive(s, a, sampler.as_mut(), &settings, acc, &ProgressBar::hidden());
+            let (out, _) = frame::render_progressive(s, a, sampler.as_mut(), &settings, acc, &NoProgress);
             let img = out.film.image();
             assert_eq!(img.non_finite_count(), 0);
             img
@@ -101,7 +101,7 @@ fn unclamped_mir_converges_to_pt() {
                     max_depth: 64,
                     ..OfflineSettings::preview()
                 };
-                offline::render_pt_filtered(&s, &a, &st, &filter, &ProgressBar::hidden()).film.image()
+                offline::render_pt_filtered(&s, &a, &st, &filter, &NoProgress).film.image()
             })
             .collect();
         let reference = Estimate::from_batches(&imgs);
@@ -291,7 +291,7 @@ fn seed_runs(
         .map(|b| {
             let acc =
                 Accumulation { budget: Budget::Samples(16), seed: seed0 + 1000 * b, aovs: false, filter_fade: fade };
-            let (out, _) = frame::render_progressive(s, a, sampler().as_mut(), settings, acc, &ProgressBar::hidden());
+            let (out, _) = frame::render_progressive(s, a, sampler().as_mut(), settings, acc, &NoProgress);
             let img = out.film.image();
             assert_eq!(img.non_finite_count(), 0, "{name}");
             img
@@ -337,7 +337,7 @@ fn compensated_mir_agrees_with_pt_on_the_hard_scenes() {
                     max_depth: 64,
                     ..OfflineSettings::preview()
                 };
-                offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image()
+                offline::render_pt(&s, &a, &st, &NoProgress).film.image()
             })
             .collect();
         let reference = Estimate::from_batches(&imgs);
@@ -418,7 +418,7 @@ fn the_default_render_agrees_with_pt_on_every_diffuse_scene() {
             .map(|b| {
                 let spp = if hard { 1536 } else { 512 };
                 let st = OfflineSettings { budget: Budget::Samples(spp), seed: 90 + b, ..options.offline };
-                offline::render_pt(&s, &a, &st, &ProgressBar::hidden()).film.image()
+                offline::render_pt(&s, &a, &st, &NoProgress).film.image()
             })
             .collect();
         let reference = Estimate::from_batches(&imgs);
@@ -530,8 +530,7 @@ fn the_default_renders_vpls_bring_comparable_light() {
         let (s, a) = scene(builtin::by_name(name).unwrap(), w, h);
         let mut sampler = options.vpl_sampler.build_with(&options.sampler);
         let acc = Accumulation { budget: Budget::Samples(16), seed: 3, aovs: false, filter_fade: options.filter_fade };
-        let (out, stats) =
-            frame::render_progressive(&s, &a, sampler.as_mut(), &options.frame, acc, &ProgressBar::hidden());
+        let (out, stats) = frame::render_progressive(&s, &a, sampler.as_mut(), &options.frame, acc, &NoProgress);
         assert_eq!(out.film.image().non_finite_count(), 0, "{name}");
         let mut r = stats.power_ratios.clone();
         assert_eq!(r.len(), 16, "{name}: a ratio per frame");

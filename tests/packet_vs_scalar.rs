@@ -29,7 +29,7 @@ fn cases() -> &'static [Case] {
             .par_iter()
             .map(|&name| {
                 let scene = Scene::from_desc(builtin::by_name(name).unwrap(), &CameraSettings::default()).unwrap();
-                let accel = Accel::build(&scene.mesh);
+                let accel = Accel::build_with_obvhs(&scene.mesh);
                 Case { name, scene, accel }
             })
             .collect()

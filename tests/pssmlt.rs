@@ -7,7 +7,6 @@ mod common;
 
 use common::{Estimate, assert_agree_blocks};
 use glam::Vec3;
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::color::luminance;
 use mirage::film::Image;
@@ -15,6 +14,7 @@ use mirage::load::SceneDesc;
 use mirage::load::builtin;
 use mirage::offline::pssmlt::{PssmltSettings, render_pssmlt};
 use mirage::offline::{self, Budget, OfflineSettings};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn scene(desc: SceneDesc, w: u32, h: u32) -> (Scene, Accel) {
@@ -28,7 +28,7 @@ fn settings(seed: u64, spp: u32) -> OfflineSettings {
 }
 
 fn pss(s: &Scene, a: &Accel, seed: u64, spp: u32, p: &PssmltSettings) -> Image {
-    let (out, st) = render_pssmlt(s, a, &settings(seed, spp), p, &ProgressBar::hidden());
+    let (out, st) = render_pssmlt(s, a, &settings(seed, spp), p, &NoProgress);
     let img = out.film.image();
     assert_eq!(img.non_finite_count(), 0, "NaN/Inf pixel (seed {seed})");
     assert!(st.b > 0.0 && st.small.0 > 0 && st.large.0 > 0, "{st:?}");
@@ -76,7 +76,7 @@ fn the_image_mean_agrees_with_pt_over_seeds_and_bootstrap_sizes() {
     for (name, desc, spp) in scenes {
         let (s, a) = scene(desc, 32, 24);
         let pt_images: Vec<Image> = (0..8)
-            .map(|seed| offline::render_pt(&s, &a, &settings(100 + seed, 4 * spp), &ProgressBar::hidden()).film.image())
+            .map(|seed| offline::render_pt(&s, &a, &settings(100 + seed, 4 * spp), &NoProgress).film.image())
             .collect();
         let pt: Vec<f64> = pt_images.iter().map(|i| luminance(i.mean()) as f64).collect();
         let (m_pt, se_pt) = mean_se(&pt);
@@ -119,15 +119,14 @@ fn the_image_is_the_same_at_any_thread_count() {
 #[test]
 fn each_mutation_type_alone_gives_the_image_mean() {
     let (s, a) = scene(builtin::cornell(), 32, 24);
-    let pt: Vec<Image> = (0..8)
-        .map(|seed| offline::render_pt(&s, &a, &settings(200 + seed, 128), &ProgressBar::hidden()).film.image())
-        .collect();
+    let pt: Vec<Image> =
+        (0..8).map(|seed| offline::render_pt(&s, &a, &settings(200 + seed, 128), &NoProgress).film.image()).collect();
     let pt = Estimate::from_batches(&pt);
     for (kind, large_step) in [("large steps", 1.0), ("small steps", 1e-6)] {
         let p = PssmltSettings { chains: 256, large_step, ..Default::default() };
         let images: Vec<Image> = (0..8)
             .map(|seed| {
-                let (out, st) = render_pssmlt(&s, &a, &settings(seed, 32), &p, &ProgressBar::hidden());
+                let (out, st) = render_pssmlt(&s, &a, &settings(seed, 32), &p, &NoProgress);
                 let (large, small) = (st.large.0, st.small.0);
                 assert!(if large_step == 1.0 { small == 0 } else { large < small / 1000 + 5 }, "{kind}: {st:?}");
                 let img = out.film.image();
@@ -148,7 +147,7 @@ fn chains_through_specular_paths_keep_moving() {
     let p = PssmltSettings { chains: 256, ..Default::default() };
     let mut stuck = 0;
     for seed in 0..4 {
-        let (out, st) = render_pssmlt(&s, &a, &settings(seed, 32), &p, &ProgressBar::hidden());
+        let (out, st) = render_pssmlt(&s, &a, &settings(seed, 32), &p, &NoProgress);
         assert_eq!(out.film.image().non_finite_count(), 0);
         stuck += st.stuck_chains;
     }

@@ -6,7 +6,6 @@ mod common;
 
 use common::{Estimate, assert_agree_blocks};
 use glam::{Vec3, vec3};
-use indicatif::ProgressBar;
 use mirage::accel::Accel;
 use mirage::film::Image;
 use mirage::frame::{self, FrameSettings};
@@ -14,6 +13,7 @@ use mirage::load::SceneDesc;
 use mirage::load::builtin::{self, Builder, quad};
 use mirage::offline::{self, Budget, OfflineSettings, bdpt::BdptOptions};
 use mirage::options::{SamplerConfig, VplSamplerArg};
+use mirage::progress::NoProgress;
 use mirage::scene::{CameraSettings, Scene};
 
 fn scene(desc: SceneDesc, w: u32, h: u32) -> (Scene, Accel) {
@@ -63,15 +63,15 @@ fn render(s: &Scene, a: &Accel, mode: Mode, batches: u64, passes: u32) -> Vec<Im
                 ..OfflineSettings::preview()
             };
             let img = match mode {
-                Mode::Pt => offline::render_pt(s, a, &st, &ProgressBar::hidden()).film.image(),
+                Mode::Pt => offline::render_pt(s, a, &st, &NoProgress).film.image(),
                 Mode::Bdpt => {
                     let o = BdptOptions { max_depth: 16, only: None, path_edges: None };
-                    offline::render_bdpt(s, a, &st, &o, &ProgressBar::hidden()).film.image()
+                    offline::render_bdpt(s, a, &st, &o, &NoProgress).film.image()
                 }
                 Mode::Pssmlt => {
                     use mirage::offline::pssmlt::{PssmltSettings, render_pssmlt};
                     let p = PssmltSettings { bootstrap: 20_000, ..PssmltSettings::default() };
-                    render_pssmlt(s, a, &st, &p, &ProgressBar::hidden()).0.film.image()
+                    render_pssmlt(s, a, &st, &p, &NoProgress).0.film.image()
                 }
                 Mode::Ir | Mode::Mir | Mode::MirCompensated => {
                     let (kind, settings) = match mode {
@@ -87,10 +87,7 @@ fn render(s: &Scene, a: &Accel, mode: Mode, batches: u64, passes: u32) -> Vec<Im
                         aovs: false,
                         filter_fade: None,
                     };
-                    frame::render_progressive(s, a, sampler.as_mut(), &settings, acc, &ProgressBar::hidden())
-                        .0
-                        .film
-                        .image()
+                    frame::render_progressive(s, a, sampler.as_mut(), &settings, acc, &NoProgress).0.film.image()
                 }
             };
             assert_eq!(img.non_finite_count(), 0, "{mode:?}");

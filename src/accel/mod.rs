@@ -8,8 +8,9 @@
 //!   ([`single`]: 8 children per SIMD box test, 4 triangles per SIMD triangle test) and packets
 //!   of 4 or 8 rays ([`packet`]: one child or triangle against all lanes). Packet builders for
 //!   the gather's patterns are in [`rays`].
-//! - into **obvhs's compressed CWBVH** (Ylitie et al. 2017), kept as the baseline the
-//!   benchmarks compare with ([`Accel::intersect_obvhs`], [`Accel::occluded_obvhs`]).
+//! - into **obvhs's compressed CWBVH** (Ylitie et al. 2017), only when asked
+//!   ([`Accel::build_with_obvhs`]): the baseline the benchmarks and the agreement tests compare
+//!   with ([`Accel::intersect_obvhs`], [`Accel::occluded_obvhs`]). Renders keep only our tree.
 //!
 //! Triangles are intersected with our watertight test ([`triangle`]) in every path, in the
 //! same arithmetic, so single rays, packet lanes and the obvhs path report the same triangle
@@ -38,6 +39,7 @@
 //! holding a hit; rays with zero or non-finite direction, or
 //! t_max ≤ 0 or NaN, hit nothing (inactive packet lanes); nothing panics on NaN input.
 
+pub mod batch;
 pub mod packet;
 pub mod rays;
 pub mod single;
@@ -46,6 +48,7 @@ pub mod wide;
 
 use glam::{Vec3, Vec3A};
 use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
@@ -97,21 +100,27 @@ pub struct Accel {
     pub frame: CanonicalFrame,
     /// Our 8-wide BVH (all queries).
     pub(crate) wide: WideBvh<8>,
-    /// obvhs's CWBVH (the baseline).
+    /// obvhs's CWBVH with its triangles, built only when asked ([`Accel::build_with_obvhs`]):
+    /// the benchmarks' and the agreement tests' baseline; renders do not keep it.
+    pub(crate) obvhs: Option<ObvhsBaseline>,
+}
+
+/// obvhs's compressed CWBVH over the same BVH2 as ours, with its triangles in its primitive order.
+pub(crate) struct ObvhsBaseline {
     pub(crate) bvh: CwBvh,
-    /// Triangle corners in BVH primitive order.
+    /// Triangle corners in CWBVH primitive order.
     pub(crate) tris: Vec<[Vec3A; 3]>,
-    /// Scene triangle index of each BVH primitive.
+    /// Scene triangle index of each CWBVH primitive.
     pub(crate) prim_to_tri: Vec<u32>,
 }
 
 impl std::fmt::Debug for Accel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Accel")
-            .field("triangles", &self.tris.len())
+            .field("triangles", &self.triangle_count())
             .field("wide_nodes", &self.wide.nodes.len())
             .field("wide_depth", &self.wide.depth)
-            .field("cwbvh_nodes", &self.bvh.nodes.len())
+            .field("cwbvh_nodes", &self.obvhs.as_ref().map(|o| o.bvh.nodes.len()))
             .finish()
     }
 }
@@ -119,6 +128,16 @@ impl std::fmt::Debug for Accel {
 impl Accel {
     /// Builds the BVH over all triangles of `mesh` (must be non-empty).
     pub fn build(mesh: &Mesh) -> Accel {
+        Self::build_inner(mesh, false)
+    }
+
+    /// [`Accel::build`], also keeping obvhs's CWBVH of the same BVH2 for
+    /// [`Accel::intersect_obvhs`] / [`Accel::occluded_obvhs`] (benchmarks and agreement tests).
+    pub fn build_with_obvhs(mesh: &Mesh) -> Accel {
+        Self::build_inner(mesh, true)
+    }
+
+    fn build_inner(mesh: &Mesh, keep_obvhs: bool) -> Accel {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for p in &mesh.positions {
             lo = lo.min(*p);
@@ -127,34 +146,59 @@ impl Accel {
         let diag = (hi - lo).length();
         let scale = if diag > 0.0 && diag.is_finite() { CANONICAL_DIAGONAL / diag } else { 1.0 };
         let frame = CanonicalFrame { center: 0.5 * (lo + hi), scale };
-        let corners: Vec<[Vec3; 3]> = (0..mesh.len() as u32).map(|t| mesh.corners(t).map(|p| frame.point(p))).collect();
-        let tris: Vec<Triangle> =
-            corners.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
-        // obvhs's `build_cwbvh_from_tris` (medium preset, no pre-splits), keeping the BVH2.
+        let corner = |t: u32| mesh.corners(t).map(|p| frame.point(p));
+        let triangle = |t: u32| {
+            let [a, b, c] = corner(t);
+            Triangle { v0: a.into(), v1: b.into(), v2: c.into() }
+        };
+        // obvhs's `build_cwbvh_from_tris` (medium preset, no pre-splits), keeping the BVH2. PLOC
+        // reads only the triangles' boxes: they are built here and freed at once, so that the
+        // build's peak memory is not the scene's.
         let params = BvhBuildParams::medium_build();
-        let mut bvh2 = PlocBuilder::with_capacity(tris.len()).build(
+        let boxes: Vec<Aabb> = (0..mesh.len() as u32).map(|t| triangle(t).aabb()).collect();
+        let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
             params.ploc_search_distance,
-            &tris,
-            (0..tris.len() as u32).collect(),
+            &boxes,
+            (0..boxes.len() as u32).collect(),
             params.sort_precision,
             params.search_depth_threshold,
         );
+        drop(boxes);
         ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
-        let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
-        let wide = WideBvh::from_bvh2(&bvh2, &corners);
-        let prim_to_tri: Vec<u32> = bvh.primitive_indices.clone();
-        let ordered = prim_to_tri.iter().map(|&i| {
-            let t = &tris[i as usize];
-            [t.v0, t.v1, t.v2]
+        let obvhs = keep_obvhs.then(|| {
+            let bvh = bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false);
+            let prim_to_tri: Vec<u32> = bvh.primitive_indices.clone();
+            let tris = prim_to_tri
+                .iter()
+                .map(|&i| {
+                    let t = triangle(i);
+                    [t.v0, t.v1, t.v2]
+                })
+                .collect();
+            ObvhsBaseline { bvh, tris, prim_to_tri }
         });
-        let accel = Accel { frame, wide, tris: ordered.collect(), prim_to_tri, bvh };
+        let wide = WideBvh::from_bvh2(&bvh2, corner);
+        drop(bvh2);
+        let accel = Accel { frame, wide, obvhs };
         debug_assert!(accel.validate(mesh));
         accel
     }
 
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
-        self.tris.len()
+        self.wide.blocks.iter().map(|b| b.len()).sum()
+    }
+
+    /// Bytes the structure holds (nodes and leaf triangles; the obvhs baseline's too when kept).
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        let ours = size_of_val(&self.wide.nodes[..]) + size_of_val(&self.wide.blocks[..]);
+        ours + self.obvhs.as_ref().map_or(0, |o| {
+            size_of_val(&o.bvh.nodes[..])
+                + size_of_val(&o.bvh.primitive_indices[..])
+                + size_of_val(&o.tris[..])
+                + size_of_val(&o.prim_to_tri[..])
+        })
     }
 
     /// Our wide BVH (for statistics and benchmarks).
@@ -162,7 +206,7 @@ impl Accel {
         &self.wide
     }
 
-    /// Checks both trees: every scene triangle appears exactly once in each and its copies
+    /// Checks the trees: every scene triangle appears exactly once in each and its copies
     /// match the mesh; our tree's boxes contain their contents.
     pub fn validate(&self, mesh: &Mesh) -> bool {
         if !self.wide.validate(mesh.len()) {
@@ -176,15 +220,16 @@ impl Accel {
                 }
             }
         }
+        let Some(o) = &self.obvhs else { return true };
         let mut seen = vec![false; mesh.len()];
-        for (prim, &tri) in self.prim_to_tri.iter().enumerate() {
+        for (prim, &tri) in o.prim_to_tri.iter().enumerate() {
             let t = tri as usize;
             if t >= seen.len() || seen[t] {
                 return false;
             }
             seen[t] = true;
             let c = mesh.corners(tri).map(|p| self.frame.point(p));
-            if (0..3).any(|k| Vec3::from(self.tris[prim][k]) != c[k]) {
+            if (0..3).any(|k| Vec3::from(o.tris[prim][k]) != c[k]) {
                 return false;
             }
         }

@@ -1,4 +1,4 @@
-//! Packet builders for the gather's coherent ray patterns (DESIGN.md §4): primary rays of small
+//! Packet builders for the gather's coherent ray patterns (docs/design.md §4): primary rays of small
 //! pixel blocks, and shadow rays that share an end point (one VPL, many pixels) or an origin
 //! (one pixel, several VPLs). Every lane is exactly the single ray the scalar code would trace
 //! (same camera ray, same [`offset_origin`] policy, same t_max), so packets and single rays give

@@ -99,15 +99,19 @@ impl Accel {
     /// [`Accel::intersect`] through obvhs's own CWBVH traversal (the benchmark baseline).
     /// Identical results except for equal-t ties and geometry within obvhs's node clip
     /// distance (10⁻¹⁰ of the scene size) of the origin.
+    ///
+    /// # Panics
+    /// When the structure was built without the baseline (use [`Accel::build_with_obvhs`]).
     pub fn intersect_obvhs(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
+        let o = self.obvhs.as_ref().expect("intersect_obvhs needs Accel::build_with_obvhs");
         let ray = self.canonical(origin, dir, t_max)?;
         let sheared = ShearedRay::new(ray.origin, ray.dir);
         let bvh_ray = BvhRay::new(ray.origin.into(), ray.dir.into(), 0.0, ray.t_max);
         let mut hit = RayHit::none();
         let mut best = (0.0f32, 0.0f32);
         let mut best_t = ray.t_max;
-        let found = self.bvh.ray_traverse(bvh_ray, &mut hit, |r, prim| {
-            let [p0, p1, p2] = self.tris[prim];
+        let found = o.bvh.ray_traverse(bvh_ray, &mut hit, |r, prim| {
+            let [p0, p1, p2] = o.tris[prim];
             match intersect(&sheared, p0, p1, p2, 0.0, r.tmax) {
                 Some(h) if h.t < best_t => {
                     best_t = h.t;
@@ -121,16 +125,20 @@ impl Accel {
         if !found {
             return None;
         }
-        Some(Hit { t: hit.t * ray.to_param, tri: self.prim_to_tri[hit.primitive_id as usize], b1: best.0, b2: best.1 })
+        Some(Hit { t: hit.t * ray.to_param, tri: o.prim_to_tri[hit.primitive_id as usize], b1: best.0, b2: best.1 })
     }
 
     /// [`Accel::occluded`] through obvhs's own CWBVH traversal (the benchmark baseline).
+    ///
+    /// # Panics
+    /// When the structure was built without the baseline (use [`Accel::build_with_obvhs`]).
     pub fn occluded_obvhs(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let o = self.obvhs.as_ref().expect("occluded_obvhs needs Accel::build_with_obvhs");
         let Some(ray) = self.canonical(origin, dir, t_max) else { return false };
         let sheared = ShearedRay::new(ray.origin, ray.dir);
         let bvh_ray = BvhRay::new(ray.origin.into(), ray.dir.into(), 0.0, ray.t_max);
-        !self.bvh.ray_traverse_miss(bvh_ray, |_, prim| {
-            let [p0, p1, p2] = self.tris[prim];
+        !o.bvh.ray_traverse_miss(bvh_ray, |_, prim| {
+            let [p0, p1, p2] = o.tris[prim];
             match intersect(&sheared, p0, p1, p2, 0.0, ray.t_max) {
                 Some(h) if h.t < ray.t_max => h.t,
                 _ => f32::INFINITY,

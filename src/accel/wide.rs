@@ -101,8 +101,9 @@ impl<const W: usize> WideBvh<W> {
         self.depth * (W - 1) + 1
     }
 
-    /// Converts obvhs's BVH2 over `tris` (canonical-frame corners, indexed by scene triangle).
-    pub fn from_bvh2(bvh2: &Bvh2, tris: &[[Vec3; 3]]) -> Self {
+    /// Converts obvhs's BVH2 over the triangles whose canonical-frame corners `corners(i)` gives
+    /// (i: the scene triangle index).
+    pub fn from_bvh2(bvh2: &Bvh2, corners: impl Fn(u32) -> [Vec3; 3]) -> Self {
         assert!((2..=16).contains(&W));
         let n2 = &bvh2.nodes;
         let leaf = leaf_decisions(bvh2);
@@ -112,7 +113,7 @@ impl<const W: usize> WideBvh<W> {
         let mut make_leaf = |bvh: &mut WideBvh<W>, node2: u32| -> u32 {
             prims.clear();
             collect_prims(bvh2, node2, &mut prims);
-            let items: Vec<([Vec3; 3], u32)> = prims.iter().map(|&p| (tris[p as usize], p)).collect();
+            let items: Vec<([Vec3; 3], u32)> = prims.iter().map(|&p| (corners(p), p)).collect();
             bvh.blocks.push(TriBlock::new(&items));
             leaf_ref(bvh.blocks.len() as u32 - 1, items.len())
         };

@@ -201,7 +201,7 @@ pub fn filter_planes(
         None => (0..h.div_ceil(2)).map(|_| None).collect(),
     };
     // Every pixel is written below; zeroed in parallel, not serially on the calling thread.
-    let mut out = if reuse.len() == w * h { reuse } else { crate::gather::fresh(w * h, Vec3::ZERO) };
+    let mut out = if reuse.len() == w * h { reuse } else { (0..w * h).into_par_iter().map(|_| Vec3::ZERO).collect() };
     let (one, cos, rel_depth) = (L::splat(1.0), L::splat(cos_max), L::splat(s.max_relative_depth));
     // Two centre rows at a time: their windows share all rows but one, so each neighbour
     // vector is loaded once for both.

@@ -6,13 +6,13 @@ use glam::{Vec2, Vec3, vec2};
 use rayon::prelude::*;
 
 use super::Tracing;
-use super::shade::Prepared;
 use crate::accel::rays::block_size;
 use crate::accel::{Accel, Hit, PacketView};
 use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Camera, Scene};
 use crate::simd::{F8, LaneRay, RayPacket};
 use crate::stats::RayStats;
+use crate::vpl::kernel::Prepared;
 use crate::vpl::transfer::{Receiver, receiver_with};
 
 /// Stream tag of G-buffer jitter.

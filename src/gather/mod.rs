@@ -1,5 +1,5 @@
 //! ⑥ The gather: G-buffer from primary rays, interleaved VPL subsets, shadow rays, and the
-//! clamped contribution `L·f·G·V` (papers/002 §7.2; DESIGN §4). Reads a [`crate::vpl::VplSet`];
+//! clamped contribution `L·f·G·V` (papers/002 §7.2; docs/design.md §4). Reads a [`crate::vpl::VplSet`];
 //! never changes it.
 
 pub mod compensate;
@@ -21,6 +21,7 @@ use crate::filter::PlaneLayout;
 use crate::scene::{Camera, Scene};
 use crate::stats::RayStats;
 use crate::vpl::VplSet;
+use crate::vpl::kernel::Prepared;
 use crate::vpl::transfer::Receiver;
 use gbuffer::{BandSlices, PreparedBand, PrimaryRays};
 use shade::Gatherer;
@@ -99,7 +100,7 @@ pub struct Held {
     /// What they were traced for; None when nothing is held.
     key: Option<HeldKey>,
     /// Per pixel.
-    prepared: Vec<Option<shade::Prepared>>,
+    prepared: Vec<Option<Prepared>>,
     /// Per band of rows: the receivers the gather reads besides their prepared form (pixel in
     /// the band, receiver).
     kept: Vec<Vec<(u32, Receiver)>>,
@@ -262,7 +263,7 @@ pub fn trace_and_gather(
         _ => (0..n_bands).map(|_| None).collect(),
     };
     // Each band's share of the held receivers, when the pass holds or reuses them.
-    type HeldBand<'h> = Option<(&'h mut [Option<shade::Prepared>], &'h mut Vec<(u32, Receiver)>)>;
+    type HeldBand<'h> = Option<(&'h mut [Option<Prepared>], &'h mut Vec<(u32, Receiver)>)>;
     let mut held_bands: Vec<HeldBand<'_>> = if reuse || hold {
         held.prepared.chunks_mut(band_len.max(1)).zip(held.kept.iter_mut()).map(Some).collect()
     } else {
@@ -302,7 +303,7 @@ pub fn trace_and_gather(
                         }
                     };
                 }
-                let (mut st, prepared): (RayStats, &[Option<shade::Prepared>]) = match held_band.take() {
+                let (mut st, prepared): (RayStats, &[Option<Prepared>]) = match held_band.take() {
                     // The held band: its receivers as the band's buffer holds traced ones (every
                     // one when all are kept, else those the gather reads).
                     Some((slots, kept)) if reuse => {

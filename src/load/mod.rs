@@ -12,6 +12,7 @@ pub mod environment;
 pub mod error;
 pub mod gltf;
 pub mod obj;
+pub mod sky_panel;
 
 use std::path::Path;
 
@@ -20,6 +21,7 @@ pub use desc::{
 };
 pub use environment::load_environment;
 pub use error::{LoadError, LoadErrorKind};
+pub use sky_panel::add_sky_light;
 
 /// Reads a scene file, choosing the parser by extension (`.gltf`, `.glb`, `.obj`).
 pub fn load(path: &Path) -> Result<SceneDesc, LoadError> {

@@ -12,8 +12,8 @@ pub mod pt;
 
 use std::time::{Duration, Instant};
 
+use crate::progress::Progress;
 use glam::{Vec2, Vec3, vec2};
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use crate::accel::Accel;
@@ -33,7 +33,7 @@ pub enum Budget {
 
 impl Budget {
     /// Sets `progress`'s length: passes, or milliseconds.
-    pub fn start_progress(&self, progress: &ProgressBar) {
+    pub fn start_progress(&self, progress: &dyn Progress) {
         match *self {
             Budget::Samples(n) => progress.set_length(n as u64),
             Budget::Time(t) => progress.set_length(t.as_millis().max(1) as u64),
@@ -42,7 +42,7 @@ impl Budget {
 
     /// After `passes` passes of a run that began at `start`: moves `progress` on and tells
     /// whether the budget is spent.
-    pub fn spent(&self, passes: u32, start: Instant, progress: &ProgressBar) -> bool {
+    pub fn spent(&self, passes: u32, start: Instant, progress: &dyn Progress) -> bool {
         match *self {
             Budget::Samples(n) => {
                 progress.set_position(passes as u64);
@@ -105,7 +105,7 @@ pub const TILE: u32 = 16;
 pub fn render_progressive<F>(
     scene: &Scene,
     settings: &OfflineSettings,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
     splats_per_pass: bool,
     sample_fn: F,
 ) -> RenderOutput
@@ -172,7 +172,7 @@ where
             break;
         }
     }
-    progress.finish_and_clear();
+    progress.finish();
     RenderOutput { film, stats, spp, elapsed: start.elapsed() }
 }
 
@@ -182,7 +182,7 @@ pub fn render_bdpt(
     accel: &Accel,
     settings: &OfflineSettings,
     opts: &bdpt::BdptOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> RenderOutput {
     render_progressive(scene, settings, progress, true, |raster, sampler, tile, st| {
         bdpt::sample(scene, accel, raster, sampler, opts, tile, st)
@@ -190,7 +190,7 @@ pub fn render_bdpt(
 }
 
 /// Renders `scene` with the reference path tracer.
-pub fn render_pt(scene: &Scene, accel: &Accel, settings: &OfflineSettings, progress: &ProgressBar) -> RenderOutput {
+pub fn render_pt(scene: &Scene, accel: &Accel, settings: &OfflineSettings, progress: &dyn Progress) -> RenderOutput {
     render_pt_of_length(scene, accel, settings, None, progress)
 }
 
@@ -200,7 +200,7 @@ pub fn render_pt_of_length(
     accel: &Accel,
     settings: &OfflineSettings,
     edges: Option<(u32, u32)>,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> RenderOutput {
     render_pt_filtered(scene, accel, settings, &pt::PathFilter { edges, ..Default::default() }, progress)
 }
@@ -211,7 +211,7 @@ pub fn render_pt_filtered(
     accel: &Accel,
     settings: &OfflineSettings,
     filter: &pt::PathFilter,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> RenderOutput {
     render_progressive(scene, settings, progress, false, |raster, sampler, _tile, st| {
         let ray = scene.camera.generate_ray(raster, sampler.next_2d());

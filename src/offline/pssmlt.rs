@@ -36,8 +36,8 @@
 
 use std::time::Instant;
 
+use crate::progress::Progress;
 use glam::{Vec2, Vec3, vec2};
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::{Budget, OfflineSettings, RenderOutput};
@@ -476,7 +476,7 @@ pub fn render_pssmlt(
     accel: &Accel,
     settings: &OfflineSettings,
     pss: &PssmltSettings,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> (RenderOutput, PssmltStats) {
     let start = Instant::now();
     let cam = &scene.camera;
@@ -530,7 +530,7 @@ pub fn render_pssmlt(
     if !(b > 0.0) {
         // Nothing in the bootstrap reached the camera: the image is black (as pt's would be
         // at that sample count).
-        progress.finish_and_clear();
+        progress.finish();
         film.add_splat_pass();
         let spp = match settings.budget {
             Budget::Samples(n) => n,
@@ -623,7 +623,7 @@ pub fn render_pssmlt(
             break;
         }
     }
-    progress.finish_and_clear();
+    progress.finish();
     chain_stats.stuck_chains = chains.iter().filter(|c| c.proposed >= 32 && c.accepted == 0).count() as u64;
     (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats)
 }

@@ -2,7 +2,7 @@
 //!
 //! Every stochastic stage derives its stream from a hash of (seed, purpose, index...), so a sample
 //! can be replayed and an image does not depend on how work is split between threads
-//! (CONVENTIONS habit 4).
+//! (docs/design.md §2, seeded streams).
 
 /// A 64-bit mixing function (SplitMix64 finaliser, Steele et al. 2014).
 #[inline]

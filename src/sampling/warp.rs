@@ -1,5 +1,5 @@
 //! Warps from the unit square to the domains rendering needs, as sample / pdf / invert triads
-//! (CONVENTIONS habit 5). Every pdf names its measure; every `invert_*` maps a point of the
+//! (docs/design.md §2). Every pdf names its measure; every `invert_*` maps a point of the
 //! domain back to the square, so primary-sample-space methods and tests can round-trip.
 
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};

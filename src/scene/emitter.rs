@@ -11,7 +11,7 @@
 //! A light vertex at infinity is stored at a point beyond the bounding sphere in its direction
 //! (`Scene::far_point`), so shadow rays test the whole scene.
 //!
-//! Radiometry (DESIGN §2): an emissive triangle has radiance `Le` on its front face (both faces
+//! Radiometry (docs/design.md §2): an emissive triangle has radiance `Le` on its front face (both faces
 //! when double-sided), power `Φ = π·Le·area` per emitting face; a point light of radiant
 //! intensity `I` has `Φ = 4π I`; a spot light `Φ = 2π I ((1 − cos_inner) + (cos_inner − cos_outer)/3)`
 //! with glTF's smooth (quadratic in cosine) falloff between the cones.

@@ -10,9 +10,11 @@ pub const NO_LIGHT: u32 = u32::MAX;
 pub struct Mesh {
     /// Vertex positions.
     pub positions: Vec<Vec3>,
-    /// Vertex normals; `Vec3::ZERO` where the source had none (flat shading).
+    /// Vertex normals, one per position, `Vec3::ZERO` where the source had none (flat
+    /// shading); empty when no mesh of the scene has any.
     pub normals: Vec<Vec3>,
-    /// Vertex texture coordinates (zero where absent).
+    /// Vertex texture coordinates, one per position (zero where absent); empty when no mesh of
+    /// the scene has any.
     pub uvs: Vec<Vec2>,
     /// Vertex indices of each triangle (counter-clockwise = front).
     pub triangles: Vec<[u32; 3]>,
@@ -43,6 +45,17 @@ impl Mesh {
         self.triangles.len()
     }
 
+    /// Bytes the mesh's arrays hold.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.positions[..])
+            + size_of_val(&self.normals[..])
+            + size_of_val(&self.uvs[..])
+            + size_of_val(&self.triangles[..])
+            + size_of_val(&self.material[..])
+            + size_of_val(&self.emitter[..])
+    }
+
     /// True when the mesh has no triangles.
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
@@ -71,13 +84,18 @@ impl Mesh {
         let (p0, p1, p2) = (self.positions[i0], self.positions[i1], self.positions[i2]);
         let p = p0 * b0 + p1 * b1 + p2 * b2;
         let ng = (p1 - p0).cross(p2 - p0).normalize();
-        let n = self.normals[i0] * b0 + self.normals[i1] * b1 + self.normals[i2] * b2;
-        let ns = match n.try_normalize() {
-            Some(ns) if ns.dot(ng) >= 0.0 => ns,
-            Some(ns) => -ns,
-            None => ng,
+        let ns = if self.normals.is_empty() {
+            ng
+        } else {
+            let n = self.normals[i0] * b0 + self.normals[i1] * b1 + self.normals[i2] * b2;
+            match n.try_normalize() {
+                Some(ns) if ns.dot(ng) >= 0.0 => ns,
+                Some(ns) => -ns,
+                None => ng,
+            }
         };
-        let uv = self.uvs[i0] * b0 + self.uvs[i1] * b1 + self.uvs[i2] * b2;
+        let uv =
+            if self.uvs.is_empty() { Vec2::ZERO } else { self.uvs[i0] * b0 + self.uvs[i1] * b1 + self.uvs[i2] * b2 };
         SurfacePoint { p, ng, ns, uv, tri }
     }
 }

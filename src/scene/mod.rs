@@ -153,6 +153,10 @@ impl Scene {
 
         let mut mesh = Mesh::default();
         let mut dropped = 0usize;
+        // Vertex normals and texture coordinates only when some mesh has them (memory follows
+        // what the scene contains); meshes without them then get zeros (flat shading, uv 0).
+        let any_normals = desc.meshes.iter().any(|m| !m.normals.is_empty());
+        let any_uvs = desc.meshes.iter().any(|m| !m.uvs.is_empty());
         for (mi, m) in desc.meshes.iter().enumerate() {
             if m.material >= materials.len() {
                 return Err(err(format!("{}: refers to missing material {}", m.origin, m.material)));
@@ -166,14 +170,14 @@ impl Scene {
                 return Err(err(format!("{}: attribute counts differ from the {nv} positions", m.origin)));
             }
             mesh.positions.extend_from_slice(&m.positions);
-            if m.normals.is_empty() {
+            if any_normals && m.normals.is_empty() {
                 mesh.normals.extend(std::iter::repeat_n(Vec3::ZERO, nv));
-            } else {
+            } else if any_normals {
                 mesh.normals.extend(m.normals.iter().map(|n| n.try_normalize().unwrap_or(Vec3::ZERO)));
             }
-            if m.uvs.is_empty() {
+            if any_uvs && m.uvs.is_empty() {
                 mesh.uvs.extend(std::iter::repeat_n(Vec2::ZERO, nv));
-            } else {
+            } else if any_uvs {
                 mesh.uvs.extend(m.uvs.iter().map(|uv| if uv.is_finite() { *uv } else { Vec2::ZERO }));
             }
             for t in m.indices.chunks_exact(3) {

@@ -4,34 +4,17 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use super::error::ViewError;
 use super::path::CameraPath;
-use super::session::{Ahead, SessionSettings};
+use super::session::{Ahead, SessionSettings, default_sampler};
 use crate::film::Tonemap;
 use crate::options::TonemapArg;
 use crate::options::{CameraArgs, GatherArgs, VplSamplerArg};
 
-/// The samplers `mirage view` starts with by preference: the first one built into this binary
-/// is the default (so MTMH becomes the default as soon as it exists). Edit this line to change it.
-pub const DEFAULT_SAMPLERS: [&str; 2] = ["mtmh", "sir"];
-
 /// Frames of a headless run without `--frames`.
 pub const DEFAULT_HEADLESS_FRAMES: u64 = 100;
-
-/// The default VPL sampler of the viewer (see [`DEFAULT_SAMPLERS`]).
-pub fn default_sampler() -> VplSamplerArg {
-    DEFAULT_SAMPLERS
-        .iter()
-        .find_map(|n| <VplSamplerArg as ValueEnum>::from_str(n, true).ok())
-        .unwrap_or(VplSamplerArg::Sir)
-}
-
-/// The command-line name of a sampler (`sir-cdf`, `mtmh`...).
-pub fn sampler_name(arg: VplSamplerArg) -> String {
-    arg.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_else(|| format!("{arg:?}"))
-}
 
 /// The window's keys, shown after the flags in `mirage view --help`.
 pub const CONTROLS_HELP: &str = "Window controls:
@@ -50,12 +33,6 @@ pub const CONTROLS_HELP: &str = "Window controls:
 pub struct ViewArgs {
     /// Scene file (.gltf, .glb, .obj) or built-in scene name (default: the built-in Cornell box).
     pub scene: Option<String>,
-    /// Add an area light for geometry-only models (e.g. ../shared/models/sponza.obj): a
-    /// downward-facing panel of radiance LE just above the model's bounds, covering its
-    /// footprint like a sky over an open courtyard (+y is up). Without a camera in the file,
-    /// the camera is placed inside, looking along the longer horizontal axis.
-    #[arg(long, value_name = "LE", num_args = 0..=1, default_missing_value = "1", allow_negative_numbers = true)]
-    pub add_light: Option<f32>,
     /// VPL sampler at start (keys 1-9 / Tab switch it). Default: mtmh when built in, else sir.
     #[arg(long, value_enum)]
     pub vpl_sampler: Option<VplSamplerArg>,
@@ -209,10 +186,8 @@ impl ViewArgs {
         {
             return bad(format!("--frames {n} is outside 1…1000000000"));
         }
-        if let Some(le) = self.add_light
-            && !(le > 0.0 && le.is_finite())
-        {
-            return bad(format!("--add-light {le} must be a positive radiance"));
+        if let Err(e) = self.lights.validate() {
+            return bad(e);
         }
         for (flag, v) in [("--width", self.camera.width), ("--height", self.camera.height)] {
             if let Some(v) = v
@@ -254,7 +229,8 @@ impl ViewArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
+    use crate::view::session::sampler_name;
+    use clap::{Parser, ValueEnum};
 
     #[derive(Parser)]
     struct Cli {
@@ -275,8 +251,8 @@ mod tests {
         assert_eq!(sampler_name(o.session.sampler), if sampler_exists("mtmh") { "mtmh" } else { "sir" });
         assert_eq!(o.frames, None);
         assert_eq!(parse(&["--headless"]).options().unwrap().frames, Some(DEFAULT_HEADLESS_FRAMES));
-        assert_eq!(parse(&["--add-light"]).add_light, Some(1.0));
-        assert_eq!(parse(&["--add-light", "5"]).add_light, Some(5.0));
+        assert_eq!(parse(&["--add-light"]).lights.add_light, Some(1.0));
+        assert_eq!(parse(&["--add-light", "5"]).lights.add_light, Some(5.0));
     }
 
     fn sampler_exists(name: &str) -> bool {

@@ -24,8 +24,8 @@
 use clap::ValueEnum;
 use winit::keyboard::KeyCode;
 
-use super::args::sampler_name;
 use super::session::Session;
+use super::session::sampler_name;
 use crate::options::VplSamplerArg;
 
 /// Interleave tiles that I cycles through.

@@ -25,7 +25,7 @@
 //! `frame::render_frame` as `render --mode ir` does, and owns only what happens around it:
 //! which camera, which sampler state, how frames are combined and shown.
 //!
-//! Temporal coherence (papers/002 §8, DESIGN §3.6): the sampler lives as long as the viewer;
+//! Temporal coherence (papers/002 §8, docs/design.md §3.6): the sampler lives as long as the viewer;
 //! a small camera move calls `camera_moved(false)` (a Metropolis chain continues), a jump or
 //! R calls `camera_moved(true)`; thresholds in [`session`]. While the camera stands still the
 //! window shows the running mean of frames, which converges.
@@ -46,8 +46,9 @@ pub mod session;
 pub mod setup;
 pub mod window;
 
-pub use args::{ViewArgs, ViewOptions, default_sampler};
+pub use args::{ViewArgs, ViewOptions};
 pub use error::ViewError;
+pub use session::default_sampler;
 
 use glam::Vec3;
 
@@ -83,7 +84,7 @@ fn run_view(args: &ViewArgs) -> Result<(), ViewError> {
             .build_global()
             .map_err(|e| ViewError::Options(format!("--threads {t}: cannot set up the worker threads: {e}")))?;
     }
-    let (scene, accel, name) = setup::prepare(args.scene.as_deref(), args.add_light, &args.camera, &args.lights)?;
+    let (scene, accel, name) = setup::prepare(args.scene.as_deref(), &args.camera, &args.lights)?;
     for w in &scene.warnings {
         eprintln!("mirage: warning: {w}");
     }

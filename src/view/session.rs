@@ -2,7 +2,7 @@
 //! sampler whose state persists across frames, [`frame::render_frame`] for each frame, and the
 //! running mean of frames while the camera stands still.
 //!
-//! Temporal chain reuse (papers/002 §8, DESIGN §3.6): when the camera changes, the sampler is
+//! Temporal chain reuse (papers/002 §8, docs/design.md §3.6): when the camera changes, the sampler is
 //! told whether the change was a small move (a stateful MIR sampler continues its chain) or a
 //! jump (it starts afresh). A jump is a translation of more than [`JUMP_DISTANCE`] of the scene
 //! diagonal, a turn of the view direction by more than [`JUMP_ANGLE_DEG`], a change of field of
@@ -53,6 +53,8 @@ use super::reuse;
 use crate::accel::Accel;
 use crate::frame::{self, FrameSettings, FrameStats};
 use crate::gather::{CameraRays, GBufferUse, JitterSequence};
+use clap::ValueEnum;
+
 use crate::options::{FilterFade, SamplerConfig, VplSamplerArg};
 use crate::sampling::rng::hash_words;
 use crate::scene::{Camera, Scene};
@@ -127,6 +129,23 @@ pub fn jitter_index(accumulated: u32, every: u32) -> u32 {
     }
 }
 
+/// The samplers `mirage view` starts with by preference: the first one built into this binary
+/// is the default (so MTMH becomes the default as soon as it exists). Edit this line to change it.
+pub const DEFAULT_SAMPLERS: [&str; 2] = ["mtmh", "sir"];
+
+/// The default VPL sampler of the viewer (see [`DEFAULT_SAMPLERS`]).
+pub fn default_sampler() -> VplSamplerArg {
+    DEFAULT_SAMPLERS
+        .iter()
+        .find_map(|n| <VplSamplerArg as ValueEnum>::from_str(n, true).ok())
+        .unwrap_or(VplSamplerArg::Sir)
+}
+
+/// The command-line name of a sampler (`sir-cdf`, `mtmh`...).
+pub fn sampler_name(arg: VplSamplerArg) -> String {
+    arg.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_else(|| format!("{arg:?}"))
+}
+
 /// What the viewer needs to start rendering.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SessionSettings {
@@ -189,7 +208,7 @@ impl Default for SessionSettings {
     /// `mirage view`'s defaults (its flags' defaults, tested there).
     fn default() -> Self {
         SessionSettings {
-            sampler: super::args::default_sampler(),
+            sampler: default_sampler(),
             max_depth: 128,
             mir: SamplerConfig { max_depth: 128, ..SamplerConfig::default() },
             // The clamp compensated (key B), at one pixel in two: frame time.

@@ -1,4 +1,4 @@
-//! Metropolis instant radiosity (Segovia, Iehl & Péroche 2007; papers/002, DESIGN §3): a Markov
+//! Metropolis instant radiosity (Segovia, Iehl & Péroche 2007; papers/002, docs/design.md §3): a Markov
 //! chain over complete paths with stationary density ∝ Y(f^(c)), whose VPL locations are then
 //! normalised so that each brings its share of the camera power.
 //!

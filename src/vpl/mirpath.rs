@@ -101,7 +101,7 @@ pub fn contribution(scene: &Scene, accel: &Accel, cam: &CameraEnd, vpl: &Vpl, st
     if accel.occluded(origin, vpl.position - origin, SHADOW_T_MAX) { Vec3::ZERO } else { c }
 }
 
-/// Luminance of a contribution, the scalar target of the chains (DESIGN §2).
+/// Luminance of a contribution, the scalar target of the chains (docs/design.md §2).
 #[inline]
 pub fn target(c: Vec3) -> f64 {
     luminance(c).max(0.0) as f64

@@ -6,6 +6,7 @@
 
 pub mod bir;
 pub mod cdf;
+pub mod kernel;
 pub mod metropolis;
 pub mod mirpath;
 pub mod mutation;

@@ -1,5 +1,5 @@
 //! Mutation kernels of the MIR chains, behind one trait that returns a proposal together with
-//! its transition density g(y|x) (papers/002 §5.2, §6; DESIGN §3):
+//! its transition density g(y|x) (papers/002 §5.2, §6; docs/design.md §3):
 //!
 //! * [`Bidirectional`] — path-space mutations in the spirit of Veach & Guibas' bidirectional
 //!   mutation (papers/000 §3.5.3, Appendix B) specialised to MIR's paths `x₀ x₁ | x_v … y₀`:

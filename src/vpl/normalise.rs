@@ -7,12 +7,13 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
+use super::kernel::{Prepared, VplLanes};
 use super::mutation::{Context, PathState};
 use super::screen::ProbeDensity;
 use super::set::{Vpl, VplSet};
 use super::transfer::Receiver;
+use crate::accel::batch::ShadowBatch;
 use crate::color::luminance;
-use crate::gather::shade::{Prepared, ShadowBatch, VplLanes};
 use crate::sampling::{IndependentSampler, Pcg32, Sampler};
 use crate::stats::RayStats;
 

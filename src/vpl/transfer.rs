@@ -1,4 +1,4 @@
-//! How much a VPL gives a receiving point: `L_v · f_s · G · V` (papers/002 §4.4; DESIGN §4),
+//! How much a VPL gives a receiving point: `L_v · f_s · G · V` (papers/002 §4.4; docs/design.md §4),
 //! the kernel shared by the gather, BIR's power estimates and MIR's normalisation.
 
 use glam::Vec3;
