@@ -8,6 +8,7 @@ Installs nothing. It runs when Mitsuba 3 is importable:
     export DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so
 
     python3 benches/peer_mitsuba.py [--scenes cornell,ajar-door-thick,sphere-field] [--pairs 3]
+    python3 benches/peer_mitsuba.py --mode bdpt --integrator ptracer --scenes light-box-thick   # bdpt row
 
 Each scene is mirage's built-in scene as glTF (`scenes/NAME.gltf`, or written by
 `gen_scenes --only NAME` for the benchmark-only sphere-field), read here and handed to Mitsuba as
@@ -151,9 +152,9 @@ def material_dicts(m, name):
     return bsdf, emitter
 
 
-def mitsuba_scene(mi, gltf, width, height, work):
+def mitsuba_scene(mi, gltf, width, height, work, integrator="path"):
     meshes, cam = read_gltf(gltf)
-    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
+    scene = {"type": "scene", "integrator": {"type": integrator, "max_depth": -1}}
     forward = rotate(cam["rotation"], [0, 0, -1])
     up = rotate(cam["rotation"], [0, 1, 0])
     eye = cam["eye"]
@@ -193,8 +194,8 @@ def luminance_mean(img):
     return float(np.mean(img @ np.array([0.2126, 0.7152, 0.0722])))
 
 
-def mirage_render(binary, scene, width, height, spp, seed, out):
-    cmd = [binary, "render", scene, "--mode", "pt", "--spp", str(spp), "--width", str(width), "--height",
+def mirage_render(binary, scene, width, height, spp, seed, out, mode="pt"):
+    cmd = [binary, "render", scene, "--mode", mode, "--spp", str(spp), "--width", str(width), "--height",
            str(height), "--seed", str(seed), "--quiet", "-o", str(out)]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
@@ -230,6 +231,8 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=4096, help="reference samples per pixel (two halves)")
     ap.add_argument("--work", default="/tmp/mirage-peer")
     ap.add_argument("--out", default=None, help="markdown table (default: print only)")
+    ap.add_argument("--mode", default="pt", choices=["pt", "bdpt"], help="mirage's mode (the reference is always pt)")
+    ap.add_argument("--integrator", default="path", choices=["path", "ptracer"], help="Mitsuba's integrator")
     a = ap.parse_args()
     mi = load_mitsuba()
     os.makedirs(a.work, exist_ok=True)
@@ -248,13 +251,13 @@ def main():
             halves.append(read_exr(mi, f))
         ref = 0.5 * (halves[0] + halves[1])
         ref_own = float(np.mean((halves[0] - halves[1]) ** 2 / 4.0 / (ref * ref + 0.01)))
-        scene = mitsuba_scene(mi, gltf, a.width, a.height, a.work)
+        scene = mitsuba_scene(mi, gltf, a.width, a.height, a.work, a.integrator)
         np.array(mi.render(scene, spp=a.spp, seed=1))  # warm-up: JIT compilation, kernel cache
         cells = {"mirage": [], "mitsuba": []}
         for pair in range(a.pairs):
             seed = 1000 + pair
             out = Path(a.work) / f"{name}-mirage.exr"
-            t, wall = mirage_render(a.mirage, str(gltf), a.width, a.height, a.spp, seed, out)
+            t, wall = mirage_render(a.mirage, str(gltf), a.width, a.height, a.spp, seed, out, a.mode)
             img = read_exr(mi, out)
             cells["mirage"].append((t, wall, relmse(img, ref) - ref_own, luminance_mean(img)))
             t0 = time.perf_counter()
@@ -274,9 +277,10 @@ def main():
         pass
     lines = [
         f"Peer benchmark, {datetime.date.today()}, {machine}, {os.cpu_count()} threads; "
-        f"{a.width}×{a.height}, {a.spp} spp per render, median of {a.pairs} interleaved pairs; reference "
-        f"mirage pt {a.ref_spp} spp in two halves. Command: `python3 benches/peer_mitsuba.py --scenes {a.scenes} "
-        f"--spp {a.spp} --pairs {a.pairs} --ref-spp {a.ref_spp}`.",
+        f"{a.width}×{a.height}, {a.spp} spp per render, median of {a.pairs} interleaved pairs; mirage "
+        f"`--mode {a.mode}` against Mitsuba `{a.integrator}`; reference mirage pt {a.ref_spp} spp in two halves. "
+        f"Command: `python3 benches/peer_mitsuba.py --scenes {a.scenes} --spp {a.spp} --pairs {a.pairs} "
+        f"--ref-spp {a.ref_spp} --mode {a.mode} --integrator {a.integrator}`.",
         "",
         "| scene | renderer | render s | samples/s (M) | relMSE (excess) | efficiency 1/(s·relMSE) | "
         "mean luminance / reference | efficiency mirage / Mitsuba |",
