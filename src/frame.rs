@@ -446,12 +446,10 @@ pub fn render_progressive(
     let mut unfiltered = vec![glam::DVec3::ZERO; if fade { cam.pixel_count() } else { 0 }];
     let start = Instant::now();
     let mut total = FrameStats::default();
-    budget.start_progress(progress);
-    let mut frames = 0u32;
     let mut spare = Spare::default();
-    loop {
+    let frames = budget.drive(start, progress, |frames| {
         let frame_seed = seed.wrapping_mul(0x9e37_79b9).wrapping_add(frames as u64);
-        let frame = render_frame_reusing(scene, accel, cam, sampler, settings, frame_seed, spare);
+        let frame = render_frame_reusing(scene, accel, cam, sampler, settings, frame_seed, std::mem::take(&mut spare));
         let mut tile = FilmTile::new(0, 0, cam.width, cam.height, aovs);
         for y in 0..cam.height {
             for x in 0..cam.width {
@@ -479,12 +477,8 @@ pub fn render_progressive(
         total += &frame.stats;
         spare = frame.into_spare();
         total.rays.samples += (cam.width * cam.height) as u64;
-        frames += 1;
-        if budget.spent(frames, start, progress) {
-            break;
-        }
-    }
-    progress.finish();
+        1
+    });
     if fade {
         film.blend_pixels(&unfiltered, acc.filter_weight(frames));
     }

@@ -14,10 +14,12 @@ use crate::progress::NoProgress;
 
 use crate::accel::Accel;
 use crate::film::Image;
-use crate::frame::{self, Accumulation, FrameSettings};
-use crate::offline::{self, Budget, OfflineSettings, bdpt::BdptOptions};
-use crate::options::{KernelArg, SamplerConfig, VplSamplerArg};
+use crate::frame::{self, FrameSettings};
+use crate::offline::pssmlt::PssmltSettings;
+use crate::offline::{self, Budget, OfflineSettings};
+use crate::options::{KernelArg, Mode, RenderOptions, SamplerConfig, VplSamplerArg};
 use crate::output;
+use crate::render;
 use crate::scene::Scene;
 
 /// A rendering method in a report.
@@ -151,7 +153,8 @@ pub struct Run {
     pub acceptance: Option<f64>,
 }
 
-/// Renders `scene` with `method` under `budget`.
+/// Renders `scene` with `method` under `budget`, through [`crate::render::render`] (the mode's
+/// flow as `mirage render` runs it).
 pub fn run(
     scene: &Scene,
     accel: &Accel,
@@ -160,38 +163,43 @@ pub fn run(
     seed: u64,
     frame_settings: &FrameSettings,
 ) -> Run {
-    let hidden = NoProgress;
-    let offline = OfflineSettings { budget, seed, ..OfflineSettings::preview() };
+    let mut options = RenderOptions {
+        mode: Mode::Pt,
+        offline: OfflineSettings { budget, seed, ..OfflineSettings::preview() },
+        tonemap: Default::default(),
+        debug_strategy: None,
+        vpl_sampler: VplSamplerArg::Sir,
+        sampler: SamplerConfig::default(),
+        frame: *frame_settings,
+        filter_fade: None,
+        pssmlt: PssmltSettings::default(),
+    };
     match method {
-        Method::Pt => {
-            let o = offline::render_pt(scene, accel, &offline, &hidden);
-            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
-        }
-        Method::Bdpt => {
-            let opts = BdptOptions { max_depth: offline.max_depth, only: None, path_edges: None };
-            let o = offline::render_bdpt(scene, accel, &offline, &opts, &hidden);
-            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: None }
-        }
-        Method::Pssmlt => {
-            let pss = crate::offline::pssmlt::PssmltSettings::default();
-            let (o, st) = crate::offline::pssmlt::render_pssmlt(scene, accel, &offline, &pss, &hidden);
-            let (p, a) = (st.large.0 + st.small.0, st.large.1 + st.small.1);
-            let acceptance = (p > 0).then(|| a as f64 / p as f64);
-            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance }
-        }
+        Method::Pt => options.mode = Mode::Pt,
+        Method::Bdpt => options.mode = Mode::Bdpt,
+        Method::Pssmlt => options.mode = Mode::Pssmlt,
         Method::Vpl { sampler, config, compensate, filter } => {
-            let mut s = sampler.build_with(config);
-            let fade = (*filter == FilterUse::Faded).then(|| frame_settings.interleave.0 * frame_settings.interleave.1);
-            let acc = Accumulation { budget, seed, aovs: false, filter_fade: fade };
-            let settings = FrameSettings {
+            options.mode = if sampler.is_metropolis() { Mode::Mir } else { Mode::Ir };
+            (options.vpl_sampler, options.sampler) = (*sampler, *config);
+            options.filter_fade =
+                (*filter == FilterUse::Faded).then(|| frame_settings.interleave.0 * frame_settings.interleave.1);
+            options.frame = FrameSettings {
                 compensate: frame_settings.compensate && *compensate,
                 filter: frame_settings.filter.filter(|_| *filter != FilterUse::Off),
                 ..*frame_settings
             };
-            let (o, st) = frame::render_progressive(scene, accel, s.as_mut(), &settings, acc, &hidden);
-            Run { image: o.film.image(), elapsed: o.elapsed, passes: o.spp, acceptance: st.sampler.acceptance_rate() }
         }
     }
+    let r = render::render(scene, accel, &options, &NoProgress);
+    let acceptance = match (&r.frame, &r.pssmlt) {
+        (Some(st), _) => st.sampler.acceptance_rate(),
+        (_, Some(st)) => {
+            let (p, a) = (st.large.0 + st.small.0, st.large.1 + st.small.1);
+            (p > 0).then(|| a as f64 / p as f64)
+        }
+        _ => None,
+    };
+    Run { image: r.out.film.image(), elapsed: r.out.elapsed, passes: r.out.spp, acceptance }
 }
 
 /// A path-traced reference made of two independent halves, so that its own noise is known.

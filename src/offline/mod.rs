@@ -40,6 +40,22 @@ impl Budget {
         }
     }
 
+    /// The progressive loop every mode shares: `pass(done)` renders one pass after `done` units
+    /// (samples per pixel, or frames) and returns how many it added, until the budget, counted
+    /// from `start`, is spent; `progress` follows. Returns the units done.
+    pub fn drive(&self, start: Instant, progress: &dyn Progress, mut pass: impl FnMut(u32) -> u32) -> u32 {
+        self.start_progress(progress);
+        let mut done = 0u32;
+        loop {
+            done += pass(done);
+            if self.spent(done, start, progress) {
+                break;
+            }
+        }
+        progress.finish();
+        done
+    }
+
     /// After `passes` passes of a run that began at `start`: moves `progress` on and tells
     /// whether the budget is spent.
     pub fn spent(&self, passes: u32, start: Instant, progress: &dyn Progress) -> bool {
@@ -122,9 +138,7 @@ where
         Budget::Samples(n) => n.clamp(1, 4),
         Budget::Time(_) => 1,
     };
-    settings.budget.start_progress(progress);
-    let mut spp = 0u32;
-    loop {
+    let spp = settings.budget.drive(start, progress, |spp| {
         let count = match settings.budget {
             Budget::Samples(n) => per_pass.min(n - spp),
             Budget::Time(_) => per_pass,
@@ -166,13 +180,8 @@ where
                 film.add_splat_pass();
             }
         }
-        spp += count;
-        let done = settings.budget.spent(spp, start, progress);
-        if done {
-            break;
-        }
-    }
-    progress.finish();
+        count
+    });
     RenderOutput { film, stats, spp, elapsed: start.elapsed() }
 }
 

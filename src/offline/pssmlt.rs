@@ -526,10 +526,10 @@ pub fn render_pssmlt(
     let pixels = cam.width as u64 * cam.height as u64;
     // One mutation per pixel per pass.
     let per_pass_spp = 1;
-    settings.budget.start_progress(progress);
     if !(b > 0.0) {
         // Nothing in the bootstrap reached the camera: the image is black (as pt's would be
         // at that sample count).
+        settings.budget.start_progress(progress);
         progress.finish();
         film.add_splat_pass();
         let spp = match settings.budget {
@@ -564,8 +564,7 @@ pub fn render_pssmlt(
         let k = pss.chains as u64;
         n / k + u64::from((c as u64) < n % k)
     };
-    let mut spp = 0u32;
-    loop {
+    let spp = settings.budget.drive(start, progress, |_| {
         let mutations = pixels * per_pass_spp as u64;
         let results: Vec<(Deposits, RayStats, PssmltStats)> = chains
             .par_iter_mut()
@@ -618,12 +617,8 @@ pub fn render_pssmlt(
         for _ in 0..per_pass_spp {
             film.add_splat_pass();
         }
-        spp += per_pass_spp;
-        if settings.budget.spent(spp, start, progress) {
-            break;
-        }
-    }
-    progress.finish();
+        per_pass_spp
+    });
     chain_stats.stuck_chains = chains.iter().filter(|c| c.proposed >= 32 && c.accepted == 0).count() as u64;
     (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats)
 }

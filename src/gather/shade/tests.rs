@@ -47,6 +47,36 @@ fn traced(
     (scene, accel, camera, gbuf)
 }
 
+/// Checks the eight-lane kernel against `want(i, g_max)` (a scalar kernel) lane for lane, for
+/// every chunk and the clamp / minimum-distance settings of the tests: a lane is set exactly when
+/// `want` gives a contribution there (lanes closer than the minimum distance dropped), and then
+/// holds the same bits. `seen(chunk, lane, lit)` hears of every lane: `Some(true)` lit,
+/// `Some(false)` dark, `None` dropped as too near.
+fn lanes_match(
+    lambert: &crate::vpl::kernel::LambertReceiver,
+    chunks: &[VplChunk],
+    p: Vec3,
+    vpls: &VplSet,
+    want: impl Fn(usize, f32) -> Option<(Vec3, Vec3)>,
+    mut seen: impl FnMut(&VplChunk, usize, Option<bool>),
+) {
+    for ch in chunks {
+        for (g_max, min_d2) in [(0.05, 0.0), (f32::INFINITY, 0.0), (f32::INFINITY, 0.5)] {
+            let lc = lambert.unshadowed8(ch, p, g_max, min_d2);
+            for j in 0..ch.lanes.count_ones() as usize {
+                let i = ch.index[j] as usize;
+                let near = (vpls.position[i] - p).length_squared() < min_d2;
+                let scalar = want(i, g_max).filter(|_| !near);
+                assert_eq!(lc.lanes >> j & 1 != 0, scalar.is_some(), "lane {j}, VPL {i}");
+                if let Some((c, full)) = scalar {
+                    assert_eq!(lc.lane(j), (c, full), "lane {j}, VPL {i}");
+                }
+                seen(ch, j, (!near).then_some(scalar.is_some()));
+            }
+        }
+    }
+}
+
 /// The prepared receivers give the bits of the general kernels: every (receiver, VPL) pair
 /// of a Cornell-box frame (Lambertian receivers, diffuse VPLs on walls and the light).
 #[test]
@@ -60,20 +90,14 @@ fn prepared_receivers_match_the_general_kernels_bit_for_bit() {
         let pt = Prepared::new(&scene, r);
         let lambert = pt.lambert.as_ref().expect("the Cornell box is Lambertian");
         // The eight-lane kernel against the scalar one, lane for lane.
-        for ch in &chunks[0] {
-            for (g_max, min_d2) in [(0.05, 0.0), (f32::INFINITY, 0.0), (f32::INFINITY, 0.5)] {
-                let lc = lambert.unshadowed8(ch, pt.p, g_max, min_d2);
-                for j in 0..ch.lanes.count_ones() as usize {
-                    let i = ch.index[j] as usize;
-                    let near = (vpls.position[i] - pt.p).length_squared() < min_d2;
-                    let scalar = lambert.unshadowed(&vpls, i, pt.p, g_max).filter(|_| !near);
-                    assert_eq!(lc.lanes >> j & 1 != 0, scalar.is_some(), "lane {j}, VPL {i}");
-                    if let Some((c, full)) = scalar {
-                        assert_eq!(lc.lane(j), (c, full), "lane {j}, VPL {i}");
-                    }
-                }
-            }
-        }
+        lanes_match(
+            lambert,
+            &chunks[0],
+            pt.p,
+            &vpls,
+            |i, g_max| lambert.unshadowed(&vpls, i, pt.p, g_max),
+            |_, _, _| {},
+        );
         for i in 0..vpls.len() {
             for g_max in [0.05, f32::INFINITY] {
                 let fast = lambert.unshadowed(&vpls, i, pt.p, g_max);
@@ -107,24 +131,21 @@ fn smooth_lambert_vpls_match_the_general_kernel_bit_for_bit() {
     for r in gbuf.receivers.iter().flatten() {
         let pt = Prepared::new(&scene, r);
         let Some(lambert) = pt.lambert.as_ref() else { continue };
-        for ch in &chunks[0] {
-            for (g_max, min_d2) in [(0.05, 0.0), (f32::INFINITY, 0.0), (f32::INFINITY, 0.5)] {
-                let lc = lambert.unshadowed8(ch, pt.p, g_max, min_d2);
-                for j in 0..ch.lanes.count_ones() as usize {
-                    let i = ch.index[j] as usize;
-                    let near = (vpls.position[i] - pt.p).length_squared() < min_d2;
-                    let general = unshadowed(&vpls, i, r, g_max).filter(|_| !near);
-                    assert_eq!(lc.lanes >> j & 1 != 0, general.is_some(), "lane {j}, VPL {i}");
-                    if let Some((c, full)) = general {
-                        assert_eq!(lc.lane(j), (c, full), "lane {j}, VPL {i}");
-                        pairs += 1;
-                        smooth_pairs += (ch.smooth_lanes >> j & 1) as usize;
-                    } else if ch.smooth_lanes >> j & 1 != 0 && !near {
-                        dark += 1;
-                    }
+        lanes_match(
+            lambert,
+            &chunks[0],
+            pt.p,
+            &vpls,
+            |i, g_max| unshadowed(&vpls, i, r, g_max),
+            |ch, j, lit| {
+                let smooth = ch.smooth_lanes >> j & 1 != 0;
+                match lit {
+                    Some(true) => (pairs, smooth_pairs) = (pairs + 1, smooth_pairs + smooth as usize),
+                    Some(false) => dark += smooth as usize,
+                    None => {}
                 }
-            }
-        }
+            },
+        );
     }
     assert!(smooth_pairs > 1_000 && pairs > 10_000, "{smooth_pairs} smooth pairs of {pairs}");
     // Some smooth lanes face away from their lobe (the VPL sends nothing there).
