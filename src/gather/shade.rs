@@ -94,7 +94,7 @@ struct RowSums<'s> {
     pending: Vec<Pending>,
     /// Each pixel's interleave scale (the weight of its subset's VPLs there).
     scale: Vec<f32>,
-    /// Per VPL, the luminance it brought to the image (see [`VplPower`]); empty: not kept.
+    /// Per VPL, the luminance it brought to the image (for [`power_ratio`]); empty: not kept.
     power: &'s mut [f32],
 }
 
@@ -266,7 +266,7 @@ impl<'a> Gatherer<'a> {
     /// needs only those that [`Gatherer::keeps_receiver`] keeps. With the clamp compensated,
     /// `compensation` (when given) receives each pixel's residual alone (it is in `out` too).
     /// `power`, unless empty, has one slot per VPL and receives the luminance each brought to
-    /// the row (compensation excluded; see [`VplPower`]).
+    /// the row (compensation excluded; for [`power_ratio`]).
     pub(crate) fn row(
         &self,
         y: u32,
