@@ -54,7 +54,8 @@ pub struct FrameSettings {
     /// several interleave subsets ([`gather::split_strong`]); 0: never.
     pub split_strong: f32,
     /// Measure how evenly the VPLs lit the image ([`FrameStats::power_ratios`]; `render`'s
-    /// summary prints it): a few per cent of the gather's time.
+    /// summary prints it). Off in the viewer: it made the shadow stage 15 % slower there
+    /// (cornell, sir; benches/results/2026-12-05-vpl-power.md).
     pub vpl_power: bool,
     /// Keep each pixel's compensation term apart as well ([`Frame::compensation`]; for the
     /// EXR's `compensation` layer).
