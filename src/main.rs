@@ -206,7 +206,10 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     }
     let pb = progress_bar(args.quiet);
     pb.0.set_message(format!("{} {}", options.mode.name(), source.name()));
-    let render::Rendered { out, frame: frame_stats, pssmlt } = render::render(&scene, &accel, &options, &pb);
+    if options.mode == mirage::options::Mode::Mlt {
+        mirage::offline::mlt::supported(&scene).map_err(|e| anyhow::anyhow!("{}: {e}", source.name()))?;
+    }
+    let render::Rendered { out, frame: frame_stats, pssmlt, mlt } = render::render(&scene, &accel, &options, &pb);
     let image = out.film.image();
     let aovs = out.film.aov_images();
     // The compensation layer only where a VPL mode compensated the clamp.
@@ -268,6 +271,32 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             m.bootstrap_nonzero,
             100.0 * large,
             100.0 * small
+        );
+    }
+    if let Some(m) = mlt {
+        let per_type: Vec<String> = mirage::offline::mlt::MutationKind::ALL
+            .iter()
+            .zip(&m.counts)
+            .filter(|(_, c)| c.proposed > 0)
+            .map(|(k, c)| {
+                let pct = |x: u64| 100.0 * x as f64 / c.proposed.max(1) as f64;
+                format!(
+                    "{} {:.1} % rejected ({:.1} % not applicable or failed)",
+                    k.name(),
+                    100.0 - pct(c.accepted),
+                    100.0 - pct(c.made)
+                )
+            })
+            .collect();
+        println!(
+            "  {} chains ({} accepted nothing), mean path {:.1} vertices, b = {:.4e} from {} bootstrap samples ({} non-zero); {}",
+            options.mlt.chains,
+            m.stuck_chains,
+            m.vertex_steps as f64 / out.stats.samples.max(1) as f64,
+            m.b,
+            options.mlt.bootstrap,
+            m.bootstrap_nonzero,
+            per_type.join(", ")
         );
     }
     if let Some(fs) = frame_stats {

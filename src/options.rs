@@ -41,6 +41,11 @@ pub enum Mode {
     /// chain (multiplexed, as pbrt-v4); --mlt-chains, --bootstrap, --large-step, --sigma. For
     /// light that arrives through slits and holes, and caustics.
     Pssmlt,
+    /// Path-space Metropolis light transport (Veach & Guibas 1997): chains over complete paths
+    /// with the bidirectional mutation and the lens and caustic perturbations (--mutations),
+    /// started without bias from a bidirectional bootstrap (--mlt-chains, --bootstrap). For
+    /// caustics and light through slits and holes. Not with lights at infinity.
+    Mlt,
 }
 
 impl Mode {
@@ -52,6 +57,7 @@ impl Mode {
             Mode::Ir => "ir",
             Mode::Mir => "mir",
             Mode::Pssmlt => "pssmlt",
+            Mode::Mlt => "mlt",
         }
     }
 }
@@ -261,10 +267,15 @@ pub struct RenderArgs {
     /// The VPL frame pipeline's flags (ir, mir).
     #[command(flatten)]
     pub gather: GatherArgs,
-    /// pssmlt: independent Markov chains (the count, not the thread count, fixes the image).
+    /// mlt: the mutation types, comma-separated: bidir (bidirectional: delete and regrow part of
+    /// the path), lens (move the image point, keep the specular chain), caustic (turn the
+    /// direction into a specular chain). The bidirectional mutation takes half the proposals.
+    #[arg(long, default_value = "bidir,lens,caustic")]
+    pub mutations: String,
+    /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().chains)]
     pub mlt_chains: usize,
-    /// pssmlt: independent paths that estimate the image's brightness (the normalisation b)
+    /// pssmlt, mlt: independent paths that estimate the image's brightness (the normalisation b)
     /// and from which the chains start, chosen ∝ their contribution.
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().bootstrap)]
     pub bootstrap: usize,
@@ -338,6 +349,8 @@ pub struct RenderOptions {
     pub filter_fade: Option<u32>,
     /// pssmlt: the chains' settings.
     pub pssmlt: crate::offline::pssmlt::PssmltSettings,
+    /// mlt: the chains' settings.
+    pub mlt: crate::offline::mlt::MltSettings,
 }
 
 impl RenderArgs {
@@ -407,6 +420,11 @@ impl RenderArgs {
             sigma: self.sigma,
         };
         pssmlt.validate().map_err(OptionsError)?;
+        let mlt = crate::offline::mlt::MltSettings {
+            chains: self.mlt_chains,
+            bootstrap: self.bootstrap,
+            mutations: crate::offline::mlt::MutationKind::parse_list(&self.mutations).map_err(OptionsError)?,
+        };
         let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,
             FilterArg::Tent => FilterKind::Tent,
@@ -430,6 +448,7 @@ impl RenderArgs {
                 ..self.gather.frame_settings()
             },
             pssmlt,
+            mlt,
             filter_fade: self.gather.filter_fade.constant(self.gather.interleave),
         })
     }

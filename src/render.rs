@@ -12,6 +12,7 @@ use crate::accel::Accel;
 use crate::frame::{self, FrameStats};
 use crate::load::{self, LoadError, builtin};
 use crate::offline::bdpt::{BdptOptions, StrategyFilter};
+use crate::offline::mlt::{self, MltStats};
 use crate::offline::pssmlt::{self, PssmltStats};
 use crate::offline::{self, RenderOutput};
 use crate::options::{Mode, RenderOptions};
@@ -123,11 +124,13 @@ pub struct Rendered {
     pub frame: Option<FrameStats>,
     /// pssmlt: the chains' statistics.
     pub pssmlt: Option<PssmltStats>,
+    /// mlt: the chains' statistics.
+    pub mlt: Option<MltStats>,
 }
 
 /// Runs the requested mode.
 pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &dyn Progress) -> Rendered {
-    let plain = |out| Rendered { out, frame: None, pssmlt: None };
+    let plain = |out| Rendered { out, frame: None, pssmlt: None, mlt: None };
     match options.mode {
         Mode::Pt => plain(offline::render_pt(scene, accel, &options.offline, progress)),
         Mode::Bdpt => {
@@ -136,7 +139,11 @@ pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &
         }
         Mode::Pssmlt => {
             let (out, st) = pssmlt::render_pssmlt(scene, accel, &options.offline, &options.pssmlt, progress);
-            Rendered { out, frame: None, pssmlt: Some(st) }
+            Rendered { out, frame: None, pssmlt: Some(st), mlt: None }
+        }
+        Mode::Mlt => {
+            let (out, st) = mlt::render_mlt(scene, accel, &options.offline, &options.mlt, progress);
+            Rendered { out, frame: None, pssmlt: None, mlt: Some(st) }
         }
         Mode::Ir | Mode::Mir => {
             let mut sampler = options.vpl_sampler.build_with(&options.sampler);
@@ -144,7 +151,7 @@ pub fn render(scene: &Scene, accel: &Accel, options: &RenderOptions, progress: &
             let acc =
                 frame::Accumulation { budget: o.budget, seed: o.seed, aovs: o.aovs, filter_fade: options.filter_fade };
             let (out, stats) = frame::render_progressive(scene, accel, sampler.as_mut(), &options.frame, acc, progress);
-            Rendered { out, frame: Some(stats), pssmlt: None }
+            Rendered { out, frame: Some(stats), pssmlt: None, mlt: None }
         }
     }
 }

@@ -15,6 +15,7 @@ use crate::progress::NoProgress;
 use crate::accel::Accel;
 use crate::film::Image;
 use crate::frame::{self, FrameSettings};
+use crate::offline::mlt::MltSettings;
 use crate::offline::pssmlt::PssmltSettings;
 use crate::offline::{self, Budget, OfflineSettings};
 use crate::options::{KernelArg, Mode, RenderOptions, SamplerConfig, VplSamplerArg};
@@ -31,6 +32,8 @@ pub enum Method {
     Bdpt,
     /// Primary-sample-space MLT over the bidirectional sampler (its default settings).
     Pssmlt,
+    /// Path-space MLT (its default settings).
+    Mlt,
     /// A VPL sampler with the frame pipeline (ir or mir).
     Vpl {
         /// The sampler.
@@ -74,7 +77,7 @@ impl Method {
             Some(base) => (base, false),
             None => (s, true),
         };
-        if !(compensate && filter == FilterUse::Faded) && matches!(s, "pt" | "bdpt" | "pssmlt") {
+        if !(compensate && filter == FilterUse::Faded) && matches!(s, "pt" | "bdpt" | "pssmlt" | "mlt") {
             return Err(format!("'{whole}': -uncompensated, -filtered and -unfiltered apply to VPL methods only"));
         }
         let mut config = SamplerConfig::default();
@@ -82,6 +85,7 @@ impl Method {
             "pt" => return Ok(Method::Pt),
             "bdpt" => return Ok(Method::Bdpt),
             "pssmlt" => return Ok(Method::Pssmlt),
+            "mlt" => return Ok(Method::Mlt),
             "sir" => VplSamplerArg::Sir,
             "sir-cdf" => VplSamplerArg::SirCdf,
             "bir" => VplSamplerArg::Bir,
@@ -92,7 +96,7 @@ impl Method {
                     Some("mtmh") => VplSamplerArg::Mtmh,
                     _ => {
                         return Err(format!(
-                            "unknown method '{s}' (pt, bdpt, pssmlt, sir, sir-cdf, bir, mh[-pss][-cdf], mtmh[-pss][-cdf])"
+                            "unknown method '{s}' (pt, bdpt, pssmlt, mlt, sir, sir-cdf, bir, mh[-pss][-cdf], mtmh[-pss][-cdf])"
                         ));
                     }
                 };
@@ -116,6 +120,7 @@ impl Method {
             Method::Pt => "pt".into(),
             Method::Bdpt => "bdpt".into(),
             Method::Pssmlt => "pssmlt".into(),
+            Method::Mlt => "mlt".into(),
             Method::Vpl { sampler, config, compensate, filter } => {
                 let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
                 if sampler.is_metropolis() {
@@ -173,11 +178,13 @@ pub fn run(
         frame: *frame_settings,
         filter_fade: None,
         pssmlt: PssmltSettings::default(),
+        mlt: MltSettings::default(),
     };
     match method {
         Method::Pt => options.mode = Mode::Pt,
         Method::Bdpt => options.mode = Mode::Bdpt,
         Method::Pssmlt => options.mode = Mode::Pssmlt,
+        Method::Mlt => options.mode = Mode::Mlt,
         Method::Vpl { sampler, config, compensate, filter } => {
             options.mode = if sampler.is_metropolis() { Mode::Mir } else { Mode::Ir };
             (options.vpl_sampler, options.sampler) = (*sampler, *config);
@@ -191,12 +198,13 @@ pub fn run(
         }
     }
     let r = render::render(scene, accel, &options, &NoProgress);
-    let acceptance = match (&r.frame, &r.pssmlt) {
-        (Some(st), _) => st.sampler.acceptance_rate(),
-        (_, Some(st)) => {
+    let acceptance = match (&r.frame, &r.pssmlt, &r.mlt) {
+        (Some(st), _, _) => st.sampler.acceptance_rate(),
+        (_, Some(st), _) => {
             let (p, a) = (st.large.0 + st.small.0, st.large.1 + st.small.1);
             (p > 0).then(|| a as f64 / p as f64)
         }
+        (_, _, Some(st)) => st.acceptance(),
         _ => None,
     };
     Run { image: r.out.film.image(), elapsed: r.out.elapsed, passes: r.out.spp, acceptance }
@@ -612,6 +620,7 @@ mod tests {
             "pt",
             "bdpt",
             "pssmlt",
+            "mlt",
             "sir",
             "sir-uncompensated",
             "sir-unfiltered",

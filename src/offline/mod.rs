@@ -7,6 +7,7 @@
 //! count for a sample budget.
 
 pub mod bdpt;
+pub mod mlt;
 pub mod pssmlt;
 pub mod pt;
 

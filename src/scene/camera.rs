@@ -141,6 +141,27 @@ impl Camera {
         Ray { origin, dir: (focus - origin).normalize() }
     }
 
+    /// A lens point for the uniform numbers `u_lens` (the eye for a pinhole), with the density
+    /// [`Camera::pdf_we`] gives it.
+    pub fn sample_lens(&self, u_lens: Vec2) -> Vec3 {
+        if self.lens_radius <= 0.0 {
+            return self.position;
+        }
+        let l = sample_uniform_disk_concentric(u_lens) * self.lens_radius;
+        self.position + self.right * l.x + self.up * l.y
+    }
+
+    /// The ray that leaves lens point `p_lens` and lands on `raster` (through the point in
+    /// focus; [`Camera::generate_ray`] with the lens sample that gives `p_lens`).
+    pub fn ray_from_lens(&self, p_lens: Vec3, raster: Vec2) -> Ray {
+        let d = self.plane_point(raster);
+        if self.lens_radius <= 0.0 {
+            return Ray { origin: self.position, dir: d.normalize() };
+        }
+        let focus = self.position + d * self.focus_distance;
+        Ray { origin: p_lens, dir: (focus - p_lens).normalize() }
+    }
+
     /// [`Camera::generate_ray`] for the first `n` (≤ 8) of eight raster positions and lens
     /// samples. A pinhole's directions are computed eight at a time with the scalar form's
     /// operations in the same order, so the rays are the same bits (tested); a thin lens takes

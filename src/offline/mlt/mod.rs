@@ -1,0 +1,451 @@
+//! Path-space Metropolis light transport (`--mode mlt`; Veach & Guibas 1997, Veach 1997 ch. 11,
+//! with the formulation of Fischer and of Cline & Egbert, docs/bibliography.md).
+//!
+//! The chains walk over complete paths ȳ = y_0 … y_{k−1} ([`path`]), with target f_lum(ȳ), the
+//! luminance of the measurement contribution, and the mutations of [`mutation`] and [`perturb`]:
+//! the bidirectional mutation (half of the proposals when perturbations are on), the lens and
+//! the caustic perturbation (the other half, shared). The type of each proposal is drawn with
+//! fixed probabilities, independent of the state, so each type keeps detailed balance on its own
+//! (Fischer §3.5.4); a type that does not apply to the state proposes nothing (the state stays).
+//! Selectable with `--mutations`.
+//!
+//! **Normalisation and start-up** (no start-up bias; Veach 1997 §11.3): `bootstrap` independent
+//! bidirectional samples, each a light and a camera walk with a fixed continuation probability
+//! (1 up to [`RR_FROM`] vertices, then [`RR_KEEP`]) and every connection of their prefixes, each
+//! connected path weighted by the balance heuristic over all the strategies that could have
+//! made it: `W = 1 / Σ_j R_L(j) R_E(k−j) / lum C*_j` (R: the walks' probability of reaching
+//! that many vertices). b = mean of Σ W per sample is an unbiased estimate of ∫ f_lum; each
+//! chain starts from one connected path chosen ∝ W (sampling–importance resampling), so
+//! (b, start) is properly weighted and no warm-up is discarded. The raster positions of the
+//! bootstrap samples are stratified over the pixels (sample i in pixel (i + o) mod P for a random
+//! offset o, so each stays uniform).
+//!
+//! **Image**: each step deposits b · f/f_lum of the proposal with weight a and of the current
+//! state with 1 − a (expected values, Veach 1997 §11.5), one mutation per pixel per pass, so the
+//! image is `b / passes · Σ f/f_lum`, the scale of the other modes.
+//!
+//! Every chain has its own random stream (seed, chain), chains run side by side, and deposits
+//! enter the film in chain order: the image is the same for a seed at any thread count.
+//!
+//! Lights at infinity (sun, sky) are not path vertices here: [`supported`] says so before a
+//! render (use `--mode pssmlt` or `bdpt` for them).
+
+pub mod mutation;
+pub mod path;
+pub mod perturb;
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::{Budget, OfflineSettings, RenderOutput};
+use crate::accel::Accel;
+use crate::bsdf::TransportMode;
+use crate::film::{Film, FilmTile};
+use crate::progress::Progress;
+use crate::sampling::Pcg32;
+use crate::scene::Scene;
+use crate::stats::RayStats;
+use mutation::{Bidirectional, Context, Mutation, State};
+use path::{PathVertex, evaluate, extend, sample_light_vertex, trace, visible};
+use perturb::{CausticPerturbation, LensPerturbation};
+
+/// Stream tags: bootstrap samples, the bootstrap's pixel offset, chains' starts, chains.
+const TAG_BOOTSTRAP: u64 = 0x4d4c_5442_4f4f;
+const TAG_OFFSET: u64 = 0x4d4c_544f_4646;
+const TAG_START: u64 = 0x4d4c_5453_5452;
+const TAG_CHAIN: u64 = 0x4d4c_5443_484e;
+
+/// Bootstrap walks continue with probability 1 until they have this many vertices…
+pub const RR_FROM: usize = 4;
+/// …and with this probability after that.
+pub const RR_KEEP: f64 = 0.8;
+
+/// The mutation types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MutationKind {
+    /// Bidirectional mutation.
+    Bidir,
+    /// Lens perturbation.
+    Lens,
+    /// Caustic perturbation.
+    Caustic,
+}
+
+impl MutationKind {
+    /// All types, in the order of the statistics.
+    pub const ALL: [MutationKind; 3] = [MutationKind::Bidir, MutationKind::Lens, MutationKind::Caustic];
+
+    /// Flag name.
+    pub fn name(self) -> &'static str {
+        match self {
+            MutationKind::Bidir => "bidir",
+            MutationKind::Lens => "lens",
+            MutationKind::Caustic => "caustic",
+        }
+    }
+
+    fn mutation(self) -> &'static dyn Mutation {
+        match self {
+            MutationKind::Bidir => &Bidirectional,
+            MutationKind::Lens => &LensPerturbation,
+            MutationKind::Caustic => &CausticPerturbation,
+        }
+    }
+
+    /// Parses a comma-separated list ("bidir,lens,caustic").
+    pub fn parse_list(s: &str) -> Result<Vec<MutationKind>, String> {
+        let mut out = Vec::new();
+        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let k = MutationKind::ALL
+                .into_iter()
+                .find(|k| k.name() == part)
+                .ok_or_else(|| format!("--mutations: unknown mutation '{part}' (bidir, lens, caustic)"))?;
+            if !out.contains(&k) {
+                out.push(k);
+            }
+        }
+        if out.is_empty() {
+            return Err("--mutations: name at least one of bidir, lens, caustic".into());
+        }
+        Ok(out)
+    }
+}
+
+/// The chains' settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MltSettings {
+    /// Independent chains.
+    pub chains: usize,
+    /// Bidirectional samples that estimate b and from which chains start.
+    pub bootstrap: usize,
+    /// Mutation types in use.
+    pub mutations: Vec<MutationKind>,
+}
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::ALL.to_vec() }
+    }
+}
+
+impl MltSettings {
+    /// Probability of each type in use: the bidirectional mutation half (all of it alone), the
+    /// perturbations the rest in equal shares.
+    pub fn probabilities(&self) -> Vec<(MutationKind, f64)> {
+        let bidir = self.mutations.contains(&MutationKind::Bidir);
+        let others = self.mutations.iter().filter(|&&k| k != MutationKind::Bidir).count();
+        self.mutations
+            .iter()
+            .map(|&k| {
+                let p = match (k, bidir, others) {
+                    (MutationKind::Bidir, _, 0) => 1.0,
+                    (MutationKind::Bidir, _, _) => 0.5,
+                    (_, true, n) => 0.5 / n as f64,
+                    (_, false, n) => 1.0 / n as f64,
+                };
+                (k, p)
+            })
+            .collect()
+    }
+}
+
+/// Per mutation type: proposals, those that gave a path, accepted.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MutationCounts {
+    /// Proposals of this type.
+    pub proposed: u64,
+    /// Proposals that gave a path with a contribution (the rest did not apply or failed).
+    pub made: u64,
+    /// Accepted proposals.
+    pub accepted: u64,
+}
+
+/// What the chains did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MltStats {
+    /// The normalisation b.
+    pub b: f64,
+    /// Bootstrap samples with a non-zero weight.
+    pub bootstrap_nonzero: u64,
+    /// Per type, in [`MutationKind::ALL`]'s order.
+    pub counts: [MutationCounts; 3],
+    /// Chains that accepted none of their proposals (at least 32 of them).
+    pub stuck_chains: u64,
+    /// Sum over steps of the current path's vertex count (mean path length = this / steps).
+    pub vertex_steps: u64,
+}
+
+impl MltStats {
+    /// Accepted over proposed, all types together.
+    pub fn acceptance(&self) -> Option<f64> {
+        let p: u64 = self.counts.iter().map(|c| c.proposed).sum();
+        let a: u64 = self.counts.iter().map(|c| c.accepted).sum();
+        (p > 0).then(|| a as f64 / p as f64)
+    }
+}
+
+/// Why a scene cannot be rendered with `mlt`, if it cannot.
+pub fn supported(scene: &Scene) -> Result<(), String> {
+    if scene.lights.list.iter().any(|l| l.at_infinity()) {
+        return Err("--mode mlt does not handle lights at infinity (sun, sky) yet: use --mode pssmlt or bdpt".into());
+    }
+    Ok(())
+}
+
+/// Probability that a bootstrap walk reaches `v` vertices.
+fn reach(v: usize) -> f64 {
+    if v <= RR_FROM { 1.0 } else { RR_KEEP.powi((v - RR_FROM) as i32) }
+}
+
+/// One bootstrap sample's walks (deterministic in (seed, i, offset)).
+fn bootstrap_walks(
+    scene: &Scene,
+    accel: &Accel,
+    seed: u64,
+    i: u64,
+    offset: u64,
+    max_vertices: usize,
+    stats: &mut RayStats,
+) -> (Vec<PathVertex>, Vec<PathVertex>) {
+    let mut rng = Pcg32::from_words(&[seed, TAG_BOOTSTRAP, i]);
+    let cam = &scene.camera;
+    let mut light = Vec::new();
+    if let Some(v) = sample_light_vertex(scene, &mut rng) {
+        light.push(v);
+        while light.len() < max_vertices - 1 {
+            if light.len() >= RR_FROM && rng.next_f64() >= RR_KEEP {
+                break;
+            }
+            if !extend(scene, accel, &mut rng, &mut light, 1, TransportMode::Importance, stats) {
+                break;
+            }
+        }
+    }
+    let pixels = cam.pixel_count() as u64;
+    let pixel = (i + offset) % pixels;
+    let raster = Vec2::new(
+        (pixel % cam.width as u64) as f32 + rng.next_f32(),
+        (pixel / cam.width as u64) as f32 + rng.next_f32(),
+    );
+    let lens = PathVertex::lens(cam.sample_lens(Vec2::new(rng.next_f32(), rng.next_f32())));
+    let mut eye = vec![lens];
+    if let Some(v) = trace(scene, accel, &lens, cam.ray_from_lens(lens.p(), raster).dir, stats) {
+        eye.push(v);
+        while eye.len() < max_vertices {
+            if eye.len() >= RR_FROM && rng.next_f64() >= RR_KEEP {
+                break;
+            }
+            if !extend(scene, accel, &mut rng, &mut eye, 1, TransportMode::Radiance, stats) {
+                break;
+            }
+        }
+    }
+    (light, eye)
+}
+
+/// The connected paths of one bootstrap sample with their weights W (see the module doc).
+fn candidates(
+    scene: &Scene,
+    accel: &Accel,
+    (light, eye): (&[PathVertex], &[PathVertex]),
+    max_vertices: usize,
+    stats: &mut RayStats,
+) -> Vec<(usize, usize, f64)> {
+    let mut out = Vec::new();
+    let mut path = Vec::with_capacity(max_vertices);
+    for t in 1..=eye.len() {
+        for s in 0..=light.len() {
+            let k = s + t;
+            if !(2..=max_vertices).contains(&k) {
+                continue;
+            }
+            path.clear();
+            path.extend_from_slice(&light[..s]);
+            path.extend(eye[..t].iter().rev());
+            let ev = evaluate(scene, &path, path::Forced::default());
+            if ev.raster.is_none() || ev.lum(s) == 0.0 {
+                continue;
+            }
+            if s > 0 && !visible(scene, accel, &path[s - 1], &path[s], stats) {
+                continue;
+            }
+            let inv = ev.inverse_sum(0..=k, |j| reach(j) * reach(k - j));
+            let w = 1.0 / inv;
+            if w > 0.0 && w.is_finite() {
+                out.push((s, t, w));
+            }
+        }
+    }
+    out
+}
+
+/// One chain.
+struct Chain {
+    rng: Pcg32,
+    state: State,
+    proposed: u64,
+    accepted: u64,
+}
+
+/// What a chain adds to the film in a pass.
+type Deposits = Vec<(Vec2, Vec3)>;
+
+/// Renders `scene` with path-space MLT; also returns the chains' statistics. Call
+/// [`supported`] first.
+pub fn render_mlt(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &OfflineSettings,
+    mlt: &MltSettings,
+    progress: &dyn Progress,
+) -> (RenderOutput, MltStats) {
+    let start = Instant::now();
+    let cam = &scene.camera;
+    let mut film = Film::new(cam.width, cam.height, settings.filter, false);
+    let mut stats = RayStats::default();
+    let seed = settings.seed;
+    let max_vertices = settings.max_depth as usize + 2;
+    let cx = Context { scene, accel, max_vertices };
+    let offset = Pcg32::from_words(&[seed, TAG_OFFSET]).next_u32() as u64;
+
+    // Bootstrap: b and the weights chains start from.
+    let n_boot = mlt.bootstrap as u64;
+    let boot: Vec<(f64, RayStats)> = (0..n_boot)
+        .into_par_iter()
+        .map(|i| {
+            let mut st = RayStats::default();
+            let (l, e) = bootstrap_walks(scene, accel, seed, i, offset, max_vertices, &mut st);
+            let total = candidates(scene, accel, (&l, &e), max_vertices, &mut st).iter().map(|c| c.2).sum();
+            st.samples += 1;
+            (total, st)
+        })
+        .collect();
+    let mut cdf = Vec::with_capacity(boot.len());
+    let mut total = 0.0f64;
+    for (w, st) in &boot {
+        stats += *st;
+        total += w;
+        cdf.push(total);
+    }
+    let mut chain_stats = MltStats {
+        b: total / n_boot as f64,
+        bootstrap_nonzero: boot.iter().filter(|(w, _)| *w > 0.0).count() as u64,
+        ..Default::default()
+    };
+    drop(boot);
+    let b = chain_stats.b;
+    if !(b > 0.0) {
+        // Nothing in the bootstrap reached the camera: a black image.
+        settings.budget.start_progress(progress);
+        progress.finish();
+        film.add_splat_pass();
+        let spp = match settings.budget {
+            Budget::Samples(n) => n,
+            Budget::Time(_) => 1,
+        };
+        return (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats);
+    }
+
+    // Chains, each from a connected path chosen ∝ W.
+    let mut chains: Vec<Chain> = (0..mlt.chains as u64)
+        .into_par_iter()
+        .map(|c| {
+            let mut pick = Pcg32::from_words(&[seed, TAG_START, c]);
+            let mut st = RayStats::default();
+            let u = pick.next_f64() * total;
+            let i = cdf.partition_point(|&x| x <= u).min(cdf.len() - 1);
+            let (l, e) = bootstrap_walks(scene, accel, seed, i as u64, offset, max_vertices, &mut st);
+            let cands = candidates(scene, accel, (&l, &e), max_vertices, &mut st);
+            let sum: f64 = cands.iter().map(|c| c.2).sum();
+            let mut u = pick.next_f64() * sum;
+            let &(s, t, _) = cands
+                .iter()
+                .find(|c| {
+                    let hit = u < c.2;
+                    u -= c.2;
+                    hit
+                })
+                .or(cands.last())
+                .expect("a bootstrap sample chosen ∝ its weight has a candidate");
+            let mut p: Vec<PathVertex> = l[..s].to_vec();
+            p.extend(e[..t].iter().rev());
+            let state = State::new(scene, p).expect("a bootstrap candidate has a contribution");
+            Chain { rng: Pcg32::from_words(&[seed, TAG_CHAIN, c]), state, proposed: 0, accepted: 0 }
+        })
+        .collect();
+    drop(cdf);
+
+    let probabilities = mlt.probabilities();
+    let pixels = cam.pixel_count() as u64;
+    let per_chain = |c: usize, n: u64| -> u64 {
+        let k = mlt.chains as u64;
+        n / k + u64::from((c as u64) < n % k)
+    };
+    let spp = settings.budget.drive(start, progress, |_| {
+        let results: Vec<(Deposits, RayStats, [MutationCounts; 3], u64)> = chains
+            .par_iter_mut()
+            .enumerate()
+            .map(|(c, ch)| {
+                let n = per_chain(c, pixels);
+                let mut deposits = Vec::with_capacity(2 * n as usize);
+                let mut st = RayStats::default();
+                let mut counts = [MutationCounts::default(); 3];
+                let mut vertex_steps = 0u64;
+                for _ in 0..n {
+                    st.samples += 1;
+                    vertex_steps += ch.state.path.len() as u64;
+                    let mut u = ch.rng.next_f64();
+                    let kind = probabilities
+                        .iter()
+                        .find(|(_, p)| {
+                            let hit = u < *p;
+                            u -= p;
+                            hit
+                        })
+                        .unwrap_or(probabilities.last().expect("at least one mutation"))
+                        .0;
+                    let slot = MutationKind::ALL.iter().position(|&k| k == kind).expect("a known kind");
+                    counts[slot].proposed += 1;
+                    ch.proposed += 1;
+                    let proposal = kind.mutation().propose(&cx, &ch.state, &mut ch.rng, &mut st);
+                    let Some(p) = proposal else {
+                        deposits.push((ch.state.raster(), ch.state.eval.colour() * b as f32));
+                        continue;
+                    };
+                    counts[slot].made += 1;
+                    let a = p.accept;
+                    if a > 0.0 {
+                        deposits.push((p.state.raster(), p.state.eval.colour() * (a * b) as f32));
+                    }
+                    if a < 1.0 {
+                        deposits.push((ch.state.raster(), ch.state.eval.colour() * ((1.0 - a) * b) as f32));
+                    }
+                    if ch.rng.next_f64() < a {
+                        counts[slot].accepted += 1;
+                        ch.accepted += 1;
+                        ch.state = p.state;
+                    }
+                }
+                (deposits, st, counts, vertex_steps)
+            })
+            .collect();
+        let mut tile = FilmTile::new(0, 0, 0, 0, false);
+        for (deposits, st, counts, vs) in results {
+            tile.splats.extend(deposits);
+            chain_stats.vertex_steps += vs;
+            stats += st;
+            for (a, c) in chain_stats.counts.iter_mut().zip(counts) {
+                a.proposed += c.proposed;
+                a.made += c.made;
+                a.accepted += c.accepted;
+            }
+        }
+        film.merge_tile(&tile);
+        film.add_splat_pass();
+        1
+    });
+    chain_stats.stuck_chains = chains.iter().filter(|c| c.proposed >= 32 && c.accepted == 0).count() as u64;
+    (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats)
+}
