@@ -6,7 +6,7 @@
 //! ```text
 //! scene file ──load──► SceneDesc ──scene──► Scene ──accel──► BVH (single rays, 4/8-wide packets)
 //!        ──path──► path vertices ──vpl──► VPL set ──gather──► image ──filter──► film ──► window / EXR
-//!                                  └──offline──► pt | bdpt | pssmlt ───────────────────► film
+//!                                  └──offline──► pt | bdpt | pssmlt | mlt ─────────────► film
 //! ```
 //!
 //! Modules (docs/design.md §1), each importing only those listed before it: the leaves
@@ -14,7 +14,7 @@
 //! filters, metrics, tone mapping) and [`filter`] (the discontinuity buffer, an image
 //! operation); then the pipeline [`load`] (files → [`load::SceneDesc`]), [`scene`] (validated
 //! immutable [`scene::Scene`]), [`accel`] (the BVH and ray queries; the only user of obvhs),
-//! [`path`] (vertices, walks, connections), [`offline`] (pt, bdpt, pssmlt), [`vpl`] (VPL samplers
+//! [`path`] (vertices, walks, connections), [`offline`] (pt, bdpt, pssmlt, mlt), [`vpl`] (VPL samplers
 //! and the VPL-to-receiver kernels), [`gather`], [`frame`] (one VPL frame), [`output`] (EXR,
 //! PNG); then the command line's [`options`], [`render`], [`report`] and the window, [`view`].
 #![deny(missing_docs)]

@@ -80,7 +80,7 @@ struct ReportArgs {
     /// Scenes (files or built-in names).
     #[arg(long, value_delimiter = ',', default_value = "cornell,ajar-door,left-right,direct-indirect,light-box")]
     scenes: Vec<String>,
-    /// Methods: pt, bdpt, pssmlt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh, and a
+    /// Methods: pt, bdpt, pssmlt, mlt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh, and a
     /// final -uncompensated for any VPL method: its clamp not compensated).
     #[arg(long, value_delimiter = ',', default_value = "pt,bdpt,sir,bir,mtmh")]
     methods: Vec<String>,

@@ -206,6 +206,8 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         (vec!["render", "--mode", "pssmlt", "--bootstrap", "0"], "--bootstrap"),
         (vec!["render", "--mode", "pssmlt", "--large-step", "0"], "--large-step"),
         (vec!["render", "--mode", "pssmlt", "--sigma", "NaN"], "--sigma"),
+        (vec!["render", "--mode", "mlt", "--mutations", "lens,warp"], "--mutations"),
+        (vec!["render", "--mode", "mlt", "--mutations", ","], "--mutations"),
         (vec!["render", "--fov-y", "200"], "field of view"),
         (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
         (vec!["render", "--tonemap", "reinhard", "--exposure", "1"], "--exposure"),
@@ -219,6 +221,30 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
         assert!(err.contains(flag), "{args:?}: error should mention {flag}: {err}");
     }
+}
+
+/// `--mode mlt` renders a built-in scene and prints its chains' summary; a scene with a sun is
+/// refused with a message naming the scene and the modes that handle it, not a panic.
+#[test]
+fn mlt_renders_and_refuses_lights_at_infinity() {
+    let dir = tmp("mlt");
+    let out = dir.join("glass.exr");
+    let base = ["--mode", "mlt", "--spp", "2", "--bootstrap", "2000", "--width", "24", "--height", "16", "--quiet"];
+    let mut args = vec!["render", "glass-sphere"];
+    args.extend(base);
+    args.extend(["-o", out.to_str().unwrap()]);
+    let o = mirage(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("bidir") && text.contains("caustic") && text.contains("b = "), "{text}");
+    assert_eq!(mirage::output::read_exr(&out).unwrap().non_finite_count(), 0);
+    let mut args = vec!["render", "sunlit-room"];
+    args.extend(base);
+    args.extend(["-o", dir.join("sun.exr").to_str().unwrap()]);
+    let o = mirage(&args);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(!err.contains("panicked") && err.contains("sunlit-room") && err.contains("pssmlt"), "{err}");
 }
 
 #[test]

@@ -86,7 +86,8 @@ impl MutationKind {
         }
     }
 
-    fn mutation(self) -> &'static dyn Mutation {
+    /// The mutation itself.
+    pub fn mutation(self) -> &'static dyn Mutation {
         match self {
             MutationKind::Bidir => &Bidirectional,
             MutationKind::Lens => &LensPerturbation,
@@ -279,6 +280,31 @@ fn candidates(
         }
     }
     out
+}
+
+/// The first connected path of the bootstrap samples (seed `seed`, in sample order) for which
+/// `wanted` holds, as a state: a start for benchmarks and tests of single mutations.
+pub fn find_state(
+    scene: &Scene,
+    accel: &Accel,
+    seed: u64,
+    max_vertices: usize,
+    wanted: impl Fn(&State) -> bool,
+) -> Option<State> {
+    let mut st = RayStats::default();
+    for i in 0..1_000_000 {
+        let (l, e) = bootstrap_walks(scene, accel, seed, i, 0, max_vertices, &mut st);
+        for (s, t, _) in candidates(scene, accel, (&l, &e), max_vertices, &mut st) {
+            let mut p: Vec<PathVertex> = l[..s].to_vec();
+            p.extend(e[..t].iter().rev());
+            if let Some(state) = State::new(scene, p)
+                && wanted(&state)
+            {
+                return Some(state);
+            }
+        }
+    }
+    None
 }
 
 /// One chain.

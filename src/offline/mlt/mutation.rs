@@ -75,8 +75,9 @@ pub trait Mutation: Sync {
 /// join the two ends with a shadow ray (Veach 1997 §11.4.2).
 ///
 /// Deletion length: kd = 0, 1 with weights 0.25, 0.5, then 2^−(kd+1), normalised over the lengths
-/// that have a position; the position uniform among the admissible ones. A point light (or the
-/// eye of a pinhole camera) is never kept as the end next to the gap: it is deleted and sampled
+/// that have a position; the position uniform among the admissible ones. The lens is never kept
+/// on the light side, and a point light (or the eye of a pinhole camera) is never kept as the end
+/// next to the gap: it is deleted and sampled
 /// again, so that one proposal cannot arise from two positions. Added length: ka = kd with weight
 /// 0.5, kd ± 1 with 0.2 each, kd ± j with 0.2·2^−j, normalised over the lengths the path can
 /// have; s′ uniform in 0 … ka. The proposal density sums over every split of the added vertices
@@ -87,9 +88,11 @@ pub struct Bidirectional;
 /// light vertex is deleted, `m = n`: the lens vertex is).
 fn admissible(path: &[PathVertex], pinhole: bool, l: isize, m: usize) -> bool {
     let n = path.len();
+    // The lens kept on the light side (l = n − 1) would be an interior vertex: never a path.
+    let keeps_lens_inside = l + 1 == n as isize;
     let keeps_point_light = l == 0 && path[0].node == Node::PointLight;
     let keeps_pinhole = m + 1 == n && pinhole;
-    !keeps_point_light && !keeps_pinhole
+    !keeps_lens_inside && !keeps_point_light && !keeps_pinhole
 }
 
 /// Admissible positions l for deleting `kd` vertices.
