@@ -240,7 +240,8 @@ fn mlt_renders_and_refuses_lights_at_infinity() {
     assert_eq!(mirage::output::read_exr(&out).unwrap().non_finite_count(), 0);
     let mut args = vec!["render", "sunlit-room"];
     args.extend(base);
-    args.extend(["-o", dir.join("sun.exr").to_str().unwrap()]);
+    let sun = dir.join("sun.exr");
+    args.extend(["-o", sun.to_str().unwrap()]);
     let o = mirage(&args);
     assert!(!o.status.success());
     let err = stderr(&o);
