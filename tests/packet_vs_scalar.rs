@@ -11,7 +11,7 @@ use mirage::accel::{Accel, PacketView, SHADOW_T_MAX, offset_origin, rays};
 use mirage::load::builtin;
 use mirage::sampling::Pcg32;
 use mirage::scene::{CameraSettings, NO_LIGHT, Scene, SurfacePoint};
-use mirage::simd::{F4, F8, LaneRay, Lanes, RayPacket};
+use mirage::simd::{F4, F8, F16, LaneRay, Lanes, RayPacket};
 use rayon::prelude::*;
 
 const RAYS_PER_KIND: usize = 100_000;
@@ -75,11 +75,12 @@ fn compare<F: Lanes>(case: &Case, packets: &[RayPacket<F>]) -> (usize, Vec<Strin
         )
 }
 
-/// Checks a ray list packed into consecutive packets of 4 and of 8 lanes.
+/// Checks a ray list packed into consecutive packets of 4, 8 and 16 lanes.
 fn check_rays(case: &Case, kind: &str, rays: &[Option<LaneRay>]) {
     assert!(rays.len() >= RAYS_PER_KIND);
     check_packets::<F4>(case, kind, &packets_of(rays));
     check_packets::<F8>(case, kind, &packets_of(rays));
+    check_packets::<F16>(case, kind, &packets_of(rays));
 }
 
 fn packets_of<F: Lanes>(rays: &[Option<LaneRay>]) -> Vec<RayPacket<F>> {
@@ -174,6 +175,7 @@ fn coherent_primary_packets_match_single_rays() {
     for case in cases() {
         check::<F4>(case);
         check::<F8>(case);
+        check::<F16>(case);
     }
 }
 
@@ -198,6 +200,7 @@ fn shadow_packets_to_one_point_match_single_rays() {
         };
         check::<F4>(case, &receivers, target);
         check::<F8>(case, &receivers, target);
+        check::<F16>(case, &receivers, target);
         // And the other pattern: one receiver to several targets.
         let targets: Vec<Vec3> = (0..64).map(|_| random_surface_point(&case.scene, &mut rng).p).collect();
         let packets: Vec<RayPacket<F8>> = receivers[..RAYS_PER_KIND / 8]

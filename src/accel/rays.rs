@@ -13,7 +13,11 @@ use crate::simd::{LaneRay, Lanes, RayPacket};
 /// The pixel block of a packet of `F::LANES` rays: 2×2 for 4 lanes, 4×2 for 8 lanes (lane
 /// `i` is pixel `(i mod w, i div w)` of the block).
 pub fn block_size<F: Lanes>() -> (u32, u32) {
-    if F::LANES == 8 { (4, 2) } else { (2, 2) }
+    match F::LANES {
+        16 => (4, 4),
+        8 => (4, 2),
+        _ => (2, 2),
+    }
 }
 
 /// Primary rays through the pixel centres of the block whose top-left pixel is (x0, y0), with
