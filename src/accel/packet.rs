@@ -436,7 +436,9 @@ impl<const N: usize> Stack3 for SpillStack<(u32, f32, u32), N> {
 /// Frustum test of the children of `node` for the lanes `alive` (those that entered it); leaf
 /// children, and every child when [`Cull::lane_tests`] says so, also get the exact per-lane
 /// test and keep only the lanes that pass it. Pushes the hit children far to near and returns
-/// the nearest, or None.
+/// the nearest, or None; for any-hit queries (`any_hit`) leaves come before inner nodes (a
+/// leaf is tested at once and its large triangles block most rays that reach it; see
+/// `single::descend_any`).
 #[inline(always)]
 fn descend_frustum<F: Lanes>(
     bvh: &WideBvh<8>,
@@ -447,6 +449,7 @@ fn descend_frustum<F: Lanes>(
     t_cull: F,
     alive: u32,
     stack: &mut impl Stack3,
+    any_hit: bool,
 ) -> Option<(u32, u32)> {
     let (t_near, mut mask) = frustum.test(&node.bounds, cull_max);
     if mask == 0 {
@@ -474,11 +477,15 @@ fn descend_frustum<F: Lanes>(
     if n == 0 {
         return None;
     }
-    // Far to near, so that the nearest is popped first.
+    // Far to near, so that the nearest is popped first (any-hit: inner nodes below leaves).
     let hits = &mut hits[..n];
+    let key = |h: &(u32, f32, u32)| {
+        let inner = any_hit && h.0 & LEAF_BIT == 0;
+        (inner, h.1)
+    };
     for i in 1..hits.len() {
         let mut j = i;
-        while j > 0 && hits[j - 1].1 < hits[j].1 {
+        while j > 0 && key(&hits[j - 1]) < key(&hits[j]) {
             hits.swap(j - 1, j);
             j -= 1;
         }
@@ -548,7 +555,7 @@ fn closest_frustum<F: Lanes>(
     loop {
         while let Some((r, lanes)) = cur {
             if r & LEAF_BIT == 0 {
-                cur = descend_frustum(bvh, p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, lanes, stack);
+                cur = descend_frustum(bvh, p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, lanes, stack, false);
                 continue;
             }
             let (b, count) = leaf_parts(r);
@@ -597,7 +604,7 @@ fn occluded_frustum<F: Lanes>(
         while let Some((r, lanes)) = cur {
             let lanes = lanes & alive;
             if r & LEAF_BIT == 0 {
-                cur = descend_frustum(bvh, p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, lanes, stack);
+                cur = descend_frustum(bvh, p, frustum, &bvh.nodes[r as usize], cull_max, t_cull, lanes, stack, true);
                 continue;
             }
             let (b, count) = leaf_parts(r);
