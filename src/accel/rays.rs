@@ -10,6 +10,16 @@ use super::{SHADOW_T_MAX, offset_origin};
 use crate::scene::{Camera, Scene, SurfacePoint};
 use crate::simd::{LaneRay, Lanes, RayPacket};
 
+/// The lanes of the G-buffer's camera packets: 16 (a 4×4 pixel block) where the build targets
+/// AVX-512, where a 16-lane comparison is one instruction and the packet kernel traces 16 camera
+/// rays faster than two packets of 8; 8 (4×2) otherwise, where 16 lanes are two 8-lane halves.
+/// Measured in benches/results/2026-12-06-embree.md (packet rows) and the view loop.
+#[cfg(target_feature = "avx512f")]
+pub type CameraLanes = crate::simd::F16;
+/// See the AVX-512 variant.
+#[cfg(not(target_feature = "avx512f"))]
+pub type CameraLanes = crate::simd::F8;
+
 /// The pixel block of a packet of `F::LANES` rays: 2×2 for 4 lanes, 4×2 for 8 lanes (lane
 /// `i` is pixel `(i mod w, i div w)` of the block).
 pub fn block_size<F: Lanes>() -> (u32, u32) {

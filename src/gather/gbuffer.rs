@@ -6,11 +6,11 @@ use glam::{Vec2, Vec3, vec2};
 use rayon::prelude::*;
 
 use super::Tracing;
-use crate::accel::rays::block_size;
+use crate::accel::rays::{CameraLanes, block_size};
 use crate::accel::{Accel, Hit, PacketView};
 use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Camera, Scene};
-use crate::simd::{F8, LaneRay, RayPacket};
+use crate::simd::{LaneRay, Lanes, RayPacket};
 use crate::stats::RayStats;
 use crate::vpl::kernel::Prepared;
 use crate::vpl::transfer::{Receiver, receiver_with};
@@ -141,9 +141,10 @@ impl PrimaryRays<'_> {
         self.block().1
     }
 
-    /// The pixel block traced together: a packet's 4×2, or one pixel for single rays.
+    /// The pixel block traced together: a camera packet's ([`CameraLanes`]: 4×4 or 4×2), or one
+    /// pixel for single rays.
     fn block(&self) -> (u32, u32) {
-        if self.tracing == Tracing::Single { (1, 1) } else { block_size::<F8>() }
+        if self.tracing == Tracing::Single { (1, 1) } else { block_size::<CameraLanes>() }
     }
 
     /// Traces the rows `y0..` of one band (`band_rows` rows, or fewer at the bottom) into `out`.
@@ -186,10 +187,12 @@ impl PrimaryRays<'_> {
         // One block of camera rays: pixel, sampler, ray, first hit. Plain arrays and one call
         // site of `receiver_from_hit`: passed through closures, these values went through
         // memory and every pixel stalled on reading them back.
-        let mut samplers: [Option<PixelStream>; 8] = Default::default();
-        let (mut raster, mut lens) = ([Vec2::ZERO; 8], [Vec2::ZERO; 8]);
-        let mut pixels = [(0u32, 0u32); 8];
-        let mut hits: [Option<Hit>; 8] = [None; 8];
+        const L: usize = CameraLanes::LANES;
+        let mut samplers: [Option<PixelStream>; L] = Default::default();
+        let (mut raster, mut lens) = ([Vec2::ZERO; L], [Vec2::ZERO; L]);
+        let mut pixels = [(0u32, 0u32); L];
+        let mut hits: [Option<Hit>; L] = [None; L];
+        let mut rays = [crate::scene::Ray { origin: camera.position, dir: camera.forward }; L];
         for x0 in (0..w).step_by(bw as usize) {
             let mut n = 0;
             for i in 0..(bw * bh) {
@@ -200,14 +203,19 @@ impl PrimaryRays<'_> {
                     n += 1;
                 }
             }
-            let rays = camera.generate_rays8(&raster, &lens, n);
+            // Eight at a time (the pinhole's normalisation in eight lanes; L is 8 or 16).
+            let chunks = raster.as_chunks::<8>().0.iter().zip(lens.as_chunks::<8>().0);
+            for (k, (r8, l8)) in chunks.enumerate().take(n.div_ceil(8)) {
+                let m = (n - 8 * k).min(8);
+                rays[8 * k..8 * k + m].copy_from_slice(&camera.generate_rays8(r8, l8, m)[..m]);
+            }
             primary += n as u64;
             if tracing == Tracing::Single {
                 for (hit, ray) in hits.iter_mut().zip(&rays).take(n) {
                     *hit = accel.intersect(ray.origin, ray.dir, f32::INFINITY);
                 }
             } else {
-                let packet = RayPacket::<F8>::from_fn(|i| {
+                let packet = RayPacket::<CameraLanes>::from_fn(|i| {
                     (i < n).then(|| LaneRay::new(rays[i].origin, rays[i].dir, f32::INFINITY))
                 });
                 // The block's rays leave the eye through its raster rectangle: their frustum
@@ -282,7 +290,7 @@ impl GBuffer {
 
 /// Traces one ray per pixel through a position jittered by `(seed, pass)` (pixel centres when
 /// `jitter` is false), following up to `max_specular` specular bounces. With packet `tracing`
-/// the camera rays of 4×2 pixel blocks are traced as one 8-wide packet (bounces stay single
+/// the camera rays of 4×4 (AVX-512) or 4×2 pixel blocks are traced as one packet (bounces stay single
 /// rays); the result is the same G-buffer. `reuse` (the previous frame's G-buffer, or
 /// `GBuffer::default()`) lends its allocation when the size matches: a 512² frame's receivers are
 /// ~40 MB, and allocating them afresh each frame costs page faults on every frame.
