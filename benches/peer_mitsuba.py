@@ -22,6 +22,11 @@ prints, set-up excluded), Mitsuba through `mi.render` after a warm-up render (JI
 excluded; kernels are cached). Efficiency = 1 / (seconds × relMSE), higher is better; the table
 gives medians over the pairs and the ratio mirage / Mitsuba of the per-pair efficiencies. The
 image means of both renderers are compared too (an independent check of correctness).
+
+Samplers: mirage renders with its default (`--sampler sobol`, padded Owen-scrambled Sobol;
+`--mirage-sampler independent` for independent numbers), Mitsuba with `independent` unless
+`--mitsuba-sampler` names another of its samplers (`stratified`, `multijitter`, `orthogonal`,
+`ldsampler`), so either side's best can be compared.
 """
 
 import argparse
@@ -152,7 +157,7 @@ def material_dicts(m, name):
     return bsdf, emitter
 
 
-def mitsuba_scene(mi, gltf, width, height, work, integrator="path"):
+def mitsuba_scene(mi, gltf, width, height, work, integrator="path", sampler="independent"):
     meshes, cam = read_gltf(gltf)
     scene = {"type": "scene", "integrator": {"type": integrator, "max_depth": -1}}
     forward = rotate(cam["rotation"], [0, 0, -1])
@@ -166,7 +171,7 @@ def mitsuba_scene(mi, gltf, width, height, work, integrator="path"):
         "type": "perspective", "fov": float(np.degrees(cam["yfov"])), "fov_axis": "y", "to_world": to_world,
         "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"},
                  "pixel_format": "rgb"},
-        "sampler": {"type": "independent", "sample_count": 1},
+        "sampler": {"type": sampler, "sample_count": 1},
     }
     for i, m in enumerate(meshes):
         ply = Path(work) / f"{Path(gltf).stem}-{i}.ply"
@@ -194,9 +199,9 @@ def luminance_mean(img):
     return float(np.mean(img @ np.array([0.2126, 0.7152, 0.0722])))
 
 
-def mirage_render(binary, scene, width, height, spp, seed, out, mode="pt"):
+def mirage_render(binary, scene, width, height, spp, seed, out, mode="pt", sampler="sobol"):
     cmd = [binary, "render", scene, "--mode", mode, "--spp", str(spp), "--width", str(width), "--height",
-           str(height), "--seed", str(seed), "--quiet", "-o", str(out)]
+           str(height), "--seed", str(seed), "--sampler", sampler, "--quiet", "-o", str(out)]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
@@ -233,6 +238,10 @@ def main():
     ap.add_argument("--out", default=None, help="markdown table (default: print only)")
     ap.add_argument("--mode", default="pt", choices=["pt", "bdpt"], help="mirage's mode (the reference is always pt)")
     ap.add_argument("--integrator", default="path", choices=["path", "ptracer"], help="Mitsuba's integrator")
+    ap.add_argument("--mirage-sampler", default="sobol", choices=["sobol", "independent"],
+                    help="mirage's --sampler for the timed renders (the reference always uses sobol)")
+    ap.add_argument("--mitsuba-sampler", default="independent",
+                    help="Mitsuba's sampler plugin (independent, stratified, multijitter, orthogonal, ldsampler)")
     a = ap.parse_args()
     mi = load_mitsuba()
     os.makedirs(a.work, exist_ok=True)
@@ -251,13 +260,13 @@ def main():
             halves.append(read_exr(mi, f))
         ref = 0.5 * (halves[0] + halves[1])
         ref_own = float(np.mean((halves[0] - halves[1]) ** 2 / 4.0 / (ref * ref + 0.01)))
-        scene = mitsuba_scene(mi, gltf, a.width, a.height, a.work, a.integrator)
+        scene = mitsuba_scene(mi, gltf, a.width, a.height, a.work, a.integrator, a.mitsuba_sampler)
         np.array(mi.render(scene, spp=a.spp, seed=1))  # warm-up: JIT compilation, kernel cache
         cells = {"mirage": [], "mitsuba": []}
         for pair in range(a.pairs):
             seed = 1000 + pair
             out = Path(a.work) / f"{name}-mirage.exr"
-            t, wall = mirage_render(a.mirage, str(gltf), a.width, a.height, a.spp, seed, out, a.mode)
+            t, wall = mirage_render(a.mirage, str(gltf), a.width, a.height, a.spp, seed, out, a.mode, a.mirage_sampler)
             img = read_exr(mi, out)
             cells["mirage"].append((t, wall, relmse(img, ref) - ref_own, luminance_mean(img)))
             t0 = time.perf_counter()
@@ -278,9 +287,11 @@ def main():
     lines = [
         f"Peer benchmark, {datetime.date.today()}, {machine}, {os.cpu_count()} threads; "
         f"{a.width}×{a.height}, {a.spp} spp per render, median of {a.pairs} interleaved pairs; mirage "
-        f"`--mode {a.mode}` against Mitsuba `{a.integrator}`; reference mirage pt {a.ref_spp} spp in two halves. "
+        f"`--mode {a.mode} --sampler {a.mirage_sampler}` against Mitsuba `{a.integrator}` with its "
+        f"`{a.mitsuba_sampler}` sampler; reference mirage pt {a.ref_spp} spp in two halves. "
         f"Command: `python3 benches/peer_mitsuba.py --scenes {a.scenes} --spp {a.spp} --pairs {a.pairs} "
-        f"--ref-spp {a.ref_spp} --mode {a.mode} --integrator {a.integrator}`.",
+        f"--ref-spp {a.ref_spp} --mode {a.mode} --integrator {a.integrator} --mirage-sampler {a.mirage_sampler} "
+        f"--mitsuba-sampler {a.mitsuba_sampler}`.",
         "",
         "| scene | renderer | render s | samples/s (M) | relMSE (excess) | efficiency 1/(s·relMSE) | "
         "mean luminance / reference | efficiency mirage / Mitsuba |",

@@ -12,6 +12,7 @@ use glam::{Vec2, Vec3};
 
 use crate::film::{FilterKind, Tonemap};
 use crate::offline::{Budget, OfflineSettings};
+use crate::sampling::PixelSamplerKind;
 use crate::scene::CameraSettings;
 
 mod vpl;
@@ -60,6 +61,16 @@ impl Mode {
             Mode::Mlt => "mlt",
         }
     }
+}
+
+/// The offline modes' per-pixel numbers as command-line values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SamplerArg {
+    /// Owen-scrambled Sobol, padded per draw (default): stratified pixel positions, light
+    /// points and first-bounce directions; same expectation, lower variance.
+    Sobol,
+    /// Independent uniform numbers (a hashed PCG32 stream per pixel sample).
+    Independent,
 }
 
 /// Pixel filters as command-line values.
@@ -258,6 +269,9 @@ pub struct RenderArgs {
     /// Pixel reconstruction filter (offline modes).
     #[arg(long, value_enum, default_value_t = FilterArg::Box)]
     pub pixel_filter: FilterArg,
+    /// The numbers pt and bdpt draw per pixel sample.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Sobol)]
+    pub sampler: SamplerArg,
     /// VPL sampler (default: sir for --mode ir, mtmh for --mode mir).
     #[arg(long, value_enum)]
     pub vpl_sampler: Option<VplSamplerArg>,
@@ -435,7 +449,17 @@ impl RenderArgs {
         let tonemap = self.tonemap.with_exposure(self.exposure).map_err(OptionsError)?;
         Ok(RenderOptions {
             mode: self.mode,
-            offline: OfflineSettings { budget, seed: self.seed, max_depth: self.max_depth, filter, aovs: self.aov },
+            offline: OfflineSettings {
+                budget,
+                seed: self.seed,
+                max_depth: self.max_depth,
+                filter,
+                aovs: self.aov,
+                sampler: match self.sampler {
+                    SamplerArg::Sobol => PixelSamplerKind::Sobol,
+                    SamplerArg::Independent => PixelSamplerKind::Independent,
+                },
+            },
             tonemap,
             debug_strategy: self.debug_strategy,
             vpl_sampler,

@@ -76,10 +76,17 @@ fn the_furnace_gives_two() {
 /// luminance b, so the mean tests the bootstrap (the seed-dependent brightness of pbrt-v4 #525,
 /// the darker-than-BDPT image of #139); the blocks test where the chains put their samples (a
 /// wrong acceptance probability, a proposal density without all its splits).
+///
+/// The block test assumes each block's mean over seeds is near normal. On the Cornell box at
+/// 32 spp (256 chains of 96 mutations) it is not: the block holding the visible lamp came out
+/// skewed over 24 seeds (blue mean 7.82, median 7.68, sd 0.42, skewness 0.82, against pt's
+/// 7.93), so eight seeds from the mode had a small spread and a low mean (t 11.2 against a
+/// critical 9.7 once pt's own variance fell under the Sobol sampler). At 128 spp (384 mutations a
+/// chain) the same block is symmetric (mean 7.97, sd 0.29, skewness −0.11), hence 128 there.
 #[test]
 fn the_image_agrees_with_pt_over_seeds_and_bootstrap_sizes() {
     let scenes: [(&str, SceneDesc, u32); 4] = [
-        ("cornell", builtin::cornell(), 32),
+        ("cornell", builtin::cornell(), 128),
         ("glass-sphere", builtin::glass_sphere(), 64),
         ("ajar-door-thick", builtin::by_name("ajar-door-thick").unwrap(), 64),
         ("light-box-thick", builtin::by_name("light-box-thick").unwrap(), 64),

@@ -3,7 +3,8 @@
 //! An estimator is a per-sample function of `&Scene`, `&Accel` and `&mut impl Sampler`
 //! ([`pt::radiance`]); the driver ([`render_progressive`]) owns threads (rayon over tiles),
 //! passes, the time / sample budget, progress and film writes. Every pixel sample draws from a
-//! stream hashed from (seed, pixel, sample index), so the image is bit-identical at any thread
+//! stream hashed from (seed, pixel, sample index) — padded scrambled Sobol numbers by default,
+//! independent ones with `--sampler independent` — so the image is bit-identical at any thread
 //! count for a sample budget.
 
 pub mod bdpt;
@@ -19,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::film::{AovSample, Film, FilmTile, FilterKind};
-use crate::sampling::{IndependentSampler, Sampler};
+use crate::sampling::{PixelSampler, PixelSamplerKind, Sampler};
 use crate::scene::Scene;
 use crate::stats::RayStats;
 
@@ -86,12 +87,21 @@ pub struct OfflineSettings {
     pub filter: FilterKind,
     /// Accumulate albedo / normal / depth AOVs.
     pub aovs: bool,
+    /// The numbers pt and bdpt draw per pixel sample (scrambled Sobol by default).
+    pub sampler: PixelSamplerKind,
 }
 
 impl OfflineSettings {
     /// Quick preview quality.
     pub fn preview() -> Self {
-        OfflineSettings { budget: Budget::Samples(16), seed: 0, max_depth: 128, filter: FilterKind::Box, aovs: false }
+        OfflineSettings {
+            budget: Budget::Samples(16),
+            seed: 0,
+            max_depth: 128,
+            filter: FilterKind::Box,
+            aovs: false,
+            sampler: PixelSamplerKind::Sobol,
+        }
     }
 
     /// Final quality.
@@ -127,7 +137,7 @@ pub fn render_progressive<F>(
     sample_fn: F,
 ) -> RenderOutput
 where
-    F: Fn(Vec2, &mut IndependentSampler, &mut FilmTile, &mut RayStats) -> (Vec3, AovSample) + Sync,
+    F: Fn(Vec2, &mut PixelSampler, &mut FilmTile, &mut RayStats) -> (Vec3, AovSample) + Sync,
 {
     let cam = &scene.camera;
     let mut film = Film::new(cam.width, cam.height, settings.filter, settings.aovs);
@@ -154,7 +164,8 @@ where
                     for x in x0..x0 + w {
                         let pixel = (y as u64) * cam.width as u64 + x as u64;
                         for s in spp..spp + count {
-                            let mut sampler = IndependentSampler::for_pixel_sample(settings.seed, pixel, s as u64);
+                            let mut sampler =
+                                PixelSampler::for_pixel_sample(settings.sampler, settings.seed, pixel, s as u64);
                             let fs = filter.sample(sampler.next_2d());
                             let raster = vec2(x as f32 + 0.5, y as f32 + 0.5) + fs.offset;
                             let (l, aov) = sample_fn(raster, &mut sampler, &mut tile, &mut st);

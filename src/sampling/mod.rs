@@ -10,4 +10,4 @@ pub mod warp;
 pub use distribution::{DiscreteSample, Distribution1D, Distribution2D, Sample2D};
 pub use mis::{balance_heuristic, power_heuristic};
 pub use rng::Pcg32;
-pub use sampler::{IndependentSampler, Sampler};
+pub use sampler::{IndependentSampler, PixelSampler, PixelSamplerKind, Sampler, SobolSampler};
