@@ -80,7 +80,7 @@ struct ReportArgs {
     /// Scenes (files or built-in names).
     #[arg(long, value_delimiter = ',', default_value = "cornell,ajar-door,left-right,direct-indirect,light-box")]
     scenes: Vec<String>,
-    /// Methods: pt, bdpt, pssmlt, mlt, sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh, and a
+    /// Methods: pt, bdpt, pssmlt, mlt, mlt-all-paths (mlt with --mlt-direct 0), sir, sir-cdf, bir, mh, mtmh (with -pss / -cdf suffixes for mh, mtmh, and a
     /// final -uncompensated for any VPL method: its clamp not compensated).
     #[arg(long, value_delimiter = ',', default_value = "pt,bdpt,sir,bir,mtmh")]
     methods: Vec<String>,
@@ -289,13 +289,18 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             })
             .collect();
         println!(
-            "  {} chains ({} accepted nothing), mean path {:.1} vertices, b = {:.4e} from {} bootstrap samples ({} non-zero); {}",
+            "  {} chains ({} accepted nothing), mean path {:.1} vertices, b = {:.4e} from {} bootstrap samples ({} non-zero){}; {}",
             options.mlt.chains,
             m.stuck_chains,
-            m.vertex_steps as f64 / out.stats.samples.max(1) as f64,
+            m.mean_path(),
             m.b,
             options.mlt.bootstrap,
             m.bootstrap_nonzero,
+            if options.mlt.direct > 0 {
+                format!(", paths of ≥ 4 vertices; direct part path traced at {} spp a pass", options.mlt.direct)
+            } else {
+                String::new()
+            },
             per_type.join(", ")
         );
     }

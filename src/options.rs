@@ -286,6 +286,12 @@ pub struct RenderArgs {
     /// direction into a specular chain). The bidirectional mutation takes half the proposals.
     #[arg(long, default_value = "bidir,lens,caustic")]
     pub mutations: String,
+    /// mlt: path-traced samples per pixel and pass for the direct part (lights seen directly and
+    /// direct lighting: paths of at most three vertices), which the chains then leave to it, so
+    /// that they spend their mutations on indirect light and caustics; 0: the chains take every
+    /// path.
+    #[arg(long, default_value_t = crate::offline::mlt::MltSettings::default().direct)]
+    pub mlt_direct: u32,
     /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().chains)]
     pub mlt_chains: usize,
@@ -438,6 +444,7 @@ impl RenderArgs {
             chains: self.mlt_chains,
             bootstrap: self.bootstrap,
             mutations: crate::offline::mlt::MutationKind::parse_list(&self.mutations).map_err(OptionsError)?,
+            direct: self.mlt_direct,
         };
         let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,

@@ -34,6 +34,8 @@ pub enum Method {
     Pssmlt,
     /// Path-space MLT (its default settings).
     Mlt,
+    /// Path-space MLT with the chains over every path (`--mlt-direct 0`).
+    MltAllPaths,
     /// A VPL sampler with the frame pipeline (ir or mir).
     Vpl {
         /// The sampler.
@@ -77,7 +79,9 @@ impl Method {
             Some(base) => (base, false),
             None => (s, true),
         };
-        if !(compensate && filter == FilterUse::Faded) && matches!(s, "pt" | "bdpt" | "pssmlt" | "mlt") {
+        if !(compensate && filter == FilterUse::Faded)
+            && matches!(s, "pt" | "bdpt" | "pssmlt" | "mlt" | "mlt-all-paths")
+        {
             return Err(format!("'{whole}': -uncompensated, -filtered and -unfiltered apply to VPL methods only"));
         }
         let mut config = SamplerConfig::default();
@@ -86,6 +90,7 @@ impl Method {
             "bdpt" => return Ok(Method::Bdpt),
             "pssmlt" => return Ok(Method::Pssmlt),
             "mlt" => return Ok(Method::Mlt),
+            "mlt-all-paths" => return Ok(Method::MltAllPaths),
             "sir" => VplSamplerArg::Sir,
             "sir-cdf" => VplSamplerArg::SirCdf,
             "bir" => VplSamplerArg::Bir,
@@ -121,6 +126,7 @@ impl Method {
             Method::Bdpt => "bdpt".into(),
             Method::Pssmlt => "pssmlt".into(),
             Method::Mlt => "mlt".into(),
+            Method::MltAllPaths => "mlt-all-paths".into(),
             Method::Vpl { sampler, config, compensate, filter } => {
                 let mut l = sampler.to_possible_value().map(|v| v.get_name().to_string()).unwrap_or_default();
                 if sampler.is_metropolis() {
@@ -185,6 +191,10 @@ pub fn run(
         Method::Bdpt => options.mode = Mode::Bdpt,
         Method::Pssmlt => options.mode = Mode::Pssmlt,
         Method::Mlt => options.mode = Mode::Mlt,
+        Method::MltAllPaths => {
+            options.mode = Mode::Mlt;
+            options.mlt.direct = 0;
+        }
         Method::Vpl { sampler, config, compensate, filter } => {
             options.mode = if sampler.is_metropolis() { Mode::Mir } else { Mode::Ir };
             (options.vpl_sampler, options.sampler) = (*sampler, *config);
@@ -621,6 +631,7 @@ mod tests {
             "bdpt",
             "pssmlt",
             "mlt",
+            "mlt-all-paths",
             "sir",
             "sir-uncompensated",
             "sir-unfiltered",

@@ -154,39 +154,7 @@ where
             Budget::Samples(n) => per_pass.min(n - spp),
             Budget::Time(_) => per_pass,
         };
-        let filter = &film.filter;
-        let results: Vec<(FilmTile, RayStats)> = tiles
-            .par_iter()
-            .map(|&(x0, y0, w, h)| {
-                let mut tile = FilmTile::new(x0, y0, w, h, settings.aovs);
-                let mut st = RayStats::default();
-                for y in y0..y0 + h {
-                    for x in x0..x0 + w {
-                        let pixel = (y as u64) * cam.width as u64 + x as u64;
-                        for s in spp..spp + count {
-                            let mut sampler =
-                                PixelSampler::for_pixel_sample(settings.sampler, settings.seed, pixel, s as u64);
-                            let fs = filter.sample(sampler.next_2d());
-                            let raster = vec2(x as f32 + 0.5, y as f32 + 0.5) + fs.offset;
-                            let (l, aov) = sample_fn(raster, &mut sampler, &mut tile, &mut st);
-                            st.samples += 1;
-                            if l.is_finite() {
-                                tile.add(x, y, l, fs.weight);
-                            } else {
-                                st.discarded += 1;
-                                tile.add(x, y, Vec3::ZERO, fs.weight);
-                            }
-                            tile.add_aov(x, y, &aov);
-                        }
-                    }
-                }
-                (tile, st)
-            })
-            .collect();
-        for (tile, st) in &results {
-            film.merge_tile(tile);
-            stats += *st;
-        }
+        stats += pixel_pass(scene, settings, &mut film, &tiles, spp..spp + count, &sample_fn);
         if splats_per_pass {
             for _ in 0..count {
                 film.add_splat_pass();
@@ -195,6 +163,57 @@ where
         count
     });
     RenderOutput { film, stats, spp, elapsed: start.elapsed() }
+}
+
+/// One pass of [`render_progressive`]: pixel samples `samples` (their indices in each pixel's
+/// sequence) of every pixel, tile by tile in parallel, merged into `film` in tile order.
+pub fn pixel_pass<F>(
+    scene: &Scene,
+    settings: &OfflineSettings,
+    film: &mut Film,
+    tiles: &[(u32, u32, u32, u32)],
+    samples: std::ops::Range<u32>,
+    sample_fn: &F,
+) -> RayStats
+where
+    F: Fn(Vec2, &mut PixelSampler, &mut FilmTile, &mut RayStats) -> (Vec3, AovSample) + Sync,
+{
+    let cam = &scene.camera;
+    let filter = &film.filter;
+    let results: Vec<(FilmTile, RayStats)> = tiles
+        .par_iter()
+        .map(|&(x0, y0, w, h)| {
+            let mut tile = FilmTile::new(x0, y0, w, h, settings.aovs);
+            let mut st = RayStats::default();
+            for y in y0..y0 + h {
+                for x in x0..x0 + w {
+                    let pixel = (y as u64) * cam.width as u64 + x as u64;
+                    for s in samples.clone() {
+                        let mut sampler =
+                            PixelSampler::for_pixel_sample(settings.sampler, settings.seed, pixel, s as u64);
+                        let fs = filter.sample(sampler.next_2d());
+                        let raster = vec2(x as f32 + 0.5, y as f32 + 0.5) + fs.offset;
+                        let (l, aov) = sample_fn(raster, &mut sampler, &mut tile, &mut st);
+                        st.samples += 1;
+                        if l.is_finite() {
+                            tile.add(x, y, l, fs.weight);
+                        } else {
+                            st.discarded += 1;
+                            tile.add(x, y, Vec3::ZERO, fs.weight);
+                        }
+                        tile.add_aov(x, y, &aov);
+                    }
+                }
+            }
+            (tile, st)
+        })
+        .collect();
+    let mut stats = RayStats::default();
+    for (tile, st) in &results {
+        film.merge_tile(tile);
+        stats += *st;
+    }
+    stats
 }
 
 /// Renders `scene` with bidirectional path tracing.

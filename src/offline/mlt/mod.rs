@@ -22,7 +22,19 @@
 //!
 //! **Image**: each step deposits b · f/f_lum of the proposal with weight a and of the current
 //! state with 1 − a (expected values, Veach 1997 §11.5), one mutation per pixel per pass, so the
-//! image is `b / passes · Σ f/f_lum`, the scale of the other modes.
+//! image is `b / passes · Σ f/f_lum`, the scale of the other modes (plus the direct part below).
+//!
+//! **Direct part** (`--mlt-direct N`, default 1; Mitsuba's split of direct illumination off the
+//! chains): paths of at most [`DIRECT_VERTICES`] vertices — a light seen directly, and a surface
+//! lit directly (or a light seen in a mirror) — are left to the path tracer restricted to them
+//! ([`super::pt::radiance_of_length`] with one or two segments: next-event estimation and BSDF
+//! sampling under the power heuristic), N samples a pixel each pass, averaged as pixel samples
+//! under the chains' splats. The chains' target is f_lum on paths of at least four vertices (a
+//! proposal outside it has target 0 and is rejected), the bootstrap counts only those, and b is
+//! their brightness. The image is the sum of two unbiased estimates of disjoint parts of the
+//! measurement; the chains no longer spend most of their mutations on the lamp and the directly
+//! lit walls, which dominate f_lum in a room lit by a ceiling lamp (256×192, 16 s, excess nMSE:
+//! glass-sphere 0.91 → 0.38, light-box-thick 7.2 → 1.9; benches/results/2026-12-07-mlt-direct.md). `--mlt-direct 0` gives every path to the chains.
 //!
 //! Every chain has its own random stream (seed, chain), chains run side by side, and deposits
 //! enter the film in chain order: the image is the same for a seed at any thread count.
@@ -44,7 +56,7 @@ use crate::accel::Accel;
 use crate::bsdf::TransportMode;
 use crate::film::{Film, FilmTile};
 use crate::progress::Progress;
-use crate::sampling::Pcg32;
+use crate::sampling::{Pcg32, PixelSampler, Sampler};
 use crate::scene::Scene;
 use crate::stats::RayStats;
 use mutation::{Bidirectional, Context, Mutation, State};
@@ -123,15 +135,27 @@ pub struct MltSettings {
     pub bootstrap: usize,
     /// Mutation types in use.
     pub mutations: Vec<MutationKind>,
+    /// Path-traced samples per pixel and pass for the direct part (paths of at most
+    /// [`DIRECT_VERTICES`] vertices: lights seen directly and direct lighting), which the chains
+    /// then leave out; 0: the chains take every path.
+    pub direct: u32,
 }
+
+/// Paths of at most this many vertices (light, surface, lens) are the direct part.
+pub const DIRECT_VERTICES: usize = 3;
 
 impl Default for MltSettings {
     fn default() -> Self {
-        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::ALL.to_vec() }
+        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::ALL.to_vec(), direct: 1 }
     }
 }
 
 impl MltSettings {
+    /// The fewest vertices of a path the chains take.
+    pub fn min_vertices(&self) -> usize {
+        if self.direct > 0 { DIRECT_VERTICES + 1 } else { 2 }
+    }
+
     /// Probability of each type in use: the bidirectional mutation half (all of it alone), the
     /// perturbations the rest in equal shares.
     pub fn probabilities(&self) -> Vec<(MutationKind, f64)> {
@@ -179,6 +203,12 @@ pub struct MltStats {
 }
 
 impl MltStats {
+    /// Mean vertex count of the chains' states over their steps.
+    pub fn mean_path(&self) -> f64 {
+        let steps: u64 = self.counts.iter().map(|c| c.proposed).sum();
+        self.vertex_steps as f64 / steps.max(1) as f64
+    }
+
     /// Accepted over proposed, all types together.
     pub fn acceptance(&self) -> Option<f64> {
         let p: u64 = self.counts.iter().map(|c| c.proposed).sum();
@@ -251,7 +281,7 @@ fn candidates(
     scene: &Scene,
     accel: &Accel,
     (light, eye): (&[PathVertex], &[PathVertex]),
-    max_vertices: usize,
+    (min_vertices, max_vertices): (usize, usize),
     stats: &mut RayStats,
 ) -> Vec<(usize, usize, f64)> {
     let mut out = Vec::new();
@@ -259,7 +289,7 @@ fn candidates(
     for t in 1..=eye.len() {
         for s in 0..=light.len() {
             let k = s + t;
-            if !(2..=max_vertices).contains(&k) {
+            if !(min_vertices..=max_vertices).contains(&k) {
                 continue;
             }
             path.clear();
@@ -294,7 +324,7 @@ pub fn find_state(
     let mut st = RayStats::default();
     for i in 0..1_000_000 {
         let (l, e) = bootstrap_walks(scene, accel, seed, i, 0, max_vertices, &mut st);
-        for (s, t, _) in candidates(scene, accel, (&l, &e), max_vertices, &mut st) {
+        for (s, t, _) in candidates(scene, accel, (&l, &e), (2, max_vertices), &mut st) {
             let mut p: Vec<PathVertex> = l[..s].to_vec();
             p.extend(e[..t].iter().rev());
             if let Some(state) = State::new(scene, p)
@@ -333,6 +363,8 @@ pub fn render_mlt(
     let mut stats = RayStats::default();
     let seed = settings.seed;
     let max_vertices = settings.max_depth as usize + 2;
+    let min_vertices = mlt.min_vertices();
+    let lengths = (min_vertices, max_vertices);
     let cx = Context { scene, accel, max_vertices };
     let offset = Pcg32::from_words(&[seed, TAG_OFFSET]).next_u32() as u64;
 
@@ -343,7 +375,7 @@ pub fn render_mlt(
         .map(|i| {
             let mut st = RayStats::default();
             let (l, e) = bootstrap_walks(scene, accel, seed, i, offset, max_vertices, &mut st);
-            let total = candidates(scene, accel, (&l, &e), max_vertices, &mut st).iter().map(|c| c.2).sum();
+            let total = candidates(scene, accel, (&l, &e), lengths, &mut st).iter().map(|c| c.2).sum();
             st.samples += 1;
             (total, st)
         })
@@ -362,7 +394,7 @@ pub fn render_mlt(
     };
     drop(boot);
     let b = chain_stats.b;
-    if !(b > 0.0) {
+    if !(b > 0.0) && mlt.direct == 0 {
         // Nothing in the bootstrap reached the camera: a black image.
         settings.budget.start_progress(progress);
         progress.finish();
@@ -374,8 +406,9 @@ pub fn render_mlt(
         return (RenderOutput { film, stats, spp, elapsed: start.elapsed() }, chain_stats);
     }
 
-    // Chains, each from a connected path chosen ∝ W.
-    let mut chains: Vec<Chain> = (0..mlt.chains as u64)
+    // Chains, each from a connected path chosen ∝ W (none when only the direct part has light).
+    let n_chains = if b > 0.0 { mlt.chains as u64 } else { 0 };
+    let mut chains: Vec<Chain> = (0..n_chains)
         .into_par_iter()
         .map(|c| {
             let mut pick = Pcg32::from_words(&[seed, TAG_START, c]);
@@ -383,7 +416,7 @@ pub fn render_mlt(
             let u = pick.next_f64() * total;
             let i = cdf.partition_point(|&x| x <= u).min(cdf.len() - 1);
             let (l, e) = bootstrap_walks(scene, accel, seed, i as u64, offset, max_vertices, &mut st);
-            let cands = candidates(scene, accel, (&l, &e), max_vertices, &mut st);
+            let cands = candidates(scene, accel, (&l, &e), lengths, &mut st);
             let sum: f64 = cands.iter().map(|c| c.2).sum();
             let mut u = pick.next_f64() * sum;
             let &(s, t, _) = cands
@@ -409,7 +442,21 @@ pub fn render_mlt(
         let k = mlt.chains as u64;
         n / k + u64::from((c as u64) < n % k)
     };
-    let spp = settings.budget.drive(start, progress, |_| {
+    // The direct part: path-traced samples restricted to paths of at most DIRECT_VERTICES
+    // vertices, `mlt.direct` a pixel each pass, averaged as pixel samples under the splats.
+    let direct_settings = OfflineSettings { aovs: false, ..settings.clone() };
+    let tiles = film.tiles(super::TILE);
+    let only_direct = super::pt::PathFilter { edges: Some((1, DIRECT_VERTICES as u32 - 1)), ..Default::default() };
+    let direct_fn = |raster: Vec2, sampler: &mut PixelSampler, _: &mut FilmTile, st: &mut RayStats| {
+        let ray = cam.generate_ray(raster, sampler.next_2d());
+        super::pt::radiance_of_length(scene, accel, ray, sampler, settings.max_depth, &only_direct, st)
+    };
+    let spp = settings.budget.drive(start, progress, |pass| {
+        if mlt.direct > 0 {
+            let first = pass * mlt.direct;
+            stats +=
+                super::pixel_pass(scene, &direct_settings, &mut film, &tiles, first..first + mlt.direct, &direct_fn);
+        }
         let results: Vec<(Deposits, RayStats, [MutationCounts; 3], u64)> = chains
             .par_iter_mut()
             .enumerate()
@@ -441,7 +488,8 @@ pub fn render_mlt(
                         continue;
                     };
                     counts[slot].made += 1;
-                    let a = p.accept;
+                    // Paths of the direct part are not the chains' (target 0 there).
+                    let a = if p.state.path.len() < min_vertices { 0.0 } else { p.accept };
                     if a > 0.0 {
                         deposits.push((p.state.raster(), p.state.eval.colour() * (a * b) as f32));
                     }
