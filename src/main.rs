@@ -8,6 +8,22 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+/// `println!` for the command's results: a closed stdout (`mirage info S | head -1`) ends the
+/// process quietly instead of panicking, as other command-line tools do; any other write error
+/// is reported and exits non-zero.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            eprintln!("mirage: cannot write to stdout: {e}");
+            std::process::exit(1);
+        }
+    }};
+}
+
 use mirage::accel::Accel;
 use mirage::color::luminance;
 use mirage::options::RenderArgs;
@@ -237,11 +253,11 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             let img = o.film.image();
             output::write_exr(&p, &img, Aovs::default())?;
             output::write_png(&p.with_extension("png"), &img, options.tonemap)?;
-            println!("strategy s={} t={} {tag} → {}", st.0, st.1, p.display());
+            out!("strategy s={} t={} {tag} → {}", st.0, st.1, p.display());
         }
     }
     let secs = out.elapsed.as_secs_f64().max(1e-9);
-    println!(
+    out!(
         "{} {}: {}×{}, {} spp in {:.2} s (+{:.2} s setup), {:.2} Msamples/s, {:.2} Mrays/s{} → {}, {}",
         options.mode.name(),
         source.name(),
@@ -262,7 +278,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     );
     if let Some(m) = pssmlt {
         let (large, small) = m.rejected();
-        println!(
+        out!(
             "  {} chains ({} accepted nothing), b = {:.4e} from {} bootstrap paths ({} non-zero); rejected: large steps {:.1} %, small steps {:.1} %",
             options.pssmlt.chains,
             m.stuck_chains,
@@ -288,7 +304,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
                 )
             })
             .collect();
-        println!(
+        out!(
             "  {} chains ({} accepted nothing), mean path {:.1} vertices, b = {:.4e} from {} bootstrap samples ({} non-zero){}; {}",
             options.mlt.chains,
             m.stuck_chains,
@@ -311,7 +327,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
         let frames = out.spp.max(1) as f64;
         let compensated = options.frame.compensate && options.frame.clamp > 0.0;
         let shadow_s = fs.shadow_time.as_secs_f64().max(1e-9);
-        println!(
+        out!(
             "  {} × {} VPLs ({}): VPLs {:.1} ms/frame, primary {:.1} ms, gather {:.1} ms ({:.2} M shadow rays/s{}), filter {:.1} ms{}; {}{}{}",
             out.spp,
             options.frame.vpls,
@@ -383,16 +399,21 @@ fn cmd_info(scene: Option<&str>, lights: &mirage::options::LightArgs) -> Result<
         eprintln!("mirage: warning: {w}");
     }
     let b = scene.bounds;
-    println!("scene      {}", source.name());
-    println!("triangles  {}", scene.mesh.len());
-    println!("materials  {}", scene.materials.len());
-    println!("textures   {}", scene.textures.len());
-    println!(
+    out!("scene      {}", source.name());
+    out!("triangles  {}", scene.mesh.len());
+    out!("materials  {}", scene.materials.len());
+    out!("textures   {}", scene.textures.len());
+    out!(
         "bounds     [{:.4}, {:.4}, {:.4}] – [{:.4}, {:.4}, {:.4}]",
-        b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+        b.min.x,
+        b.min.y,
+        b.min.z,
+        b.max.x,
+        b.max.y,
+        b.max.z
     );
     let c = &scene.camera;
-    println!(
+    out!(
         "camera     eye [{:.4}, {:.4}, {:.4}] forward [{:.3}, {:.3}, {:.3}] fov_y {:.2}° {}×{}{}",
         c.position.x,
         c.position.y,
@@ -408,7 +429,7 @@ fn cmd_info(scene: Option<&str>, lights: &mirage::options::LightArgs) -> Result<
     let total = scene.lights.total_power();
     let area = scene.lights.list.iter().filter(|l| matches!(l, Light::Area { .. })).count();
     let infinite = scene.lights.list.iter().filter(|l| l.at_infinity()).count();
-    println!(
+    out!(
         "emitters   {} ({} emissive triangles, {} punctual, {} at infinity), total power [{:.4}, {:.4}, {:.4}] W",
         scene.lights.list.len(),
         area,
@@ -453,7 +474,7 @@ fn cmd_info(scene: Option<&str>, lights: &mirage::options::LightArgs) -> Result<
         }
     }
     for (name, count, power) in by_material {
-        println!(
+        out!(
             "  {name}: {count} emitter(s), power [{:.4}, {:.4}, {:.4}] W ({:.1} % of luminance)",
             power.x,
             power.y,
@@ -464,7 +485,7 @@ fn cmd_info(scene: Option<&str>, lights: &mirage::options::LightArgs) -> Result<
     let accel = Accel::build(&scene.mesh);
     let (mesh, bvh) = (scene.mesh.heap_bytes(), accel.heap_bytes());
     let mib = |b: usize| b as f64 / (1 << 20) as f64;
-    println!(
+    out!(
         "memory     mesh {:.1} MiB, BVH {:.1} MiB: {:.0} bytes a triangle (kept while rendering)",
         mib(mesh),
         mib(bvh),
@@ -483,7 +504,7 @@ fn cmd_png(
     let img = output::read_exr(input)?;
     let out = output.map_or_else(|| input.with_extension("png"), Path::to_path_buf);
     output::write_png(&out, &img, tm)?;
-    println!("{} → {}", input.display(), out.display());
+    out!("{} → {}", input.display(), out.display());
     Ok(())
 }
 
@@ -494,13 +515,7 @@ fn cmd_diff(a: &Path, b: &Path, map: Option<&Path>) -> Result<()> {
         bail!("{} is {}×{} but {} is {}×{}", a.display(), ia.width, ia.height, b.display(), ib.width, ib.height);
     }
     let e = ia.errors(&ib);
-    println!(
-        "mse {:.6e}  relmse {:.6e}  nmse {:.6e}  mean_bias {:+.4} %",
-        e.mse,
-        e.rel_mse,
-        e.nmse,
-        100.0 * e.mean_bias
-    );
+    out!("mse {:.6e}  relmse {:.6e}  nmse {:.6e}  mean_bias {:+.4} %", e.mse, e.rel_mse, e.nmse, 100.0 * e.mean_bias);
     if let Some(path) = map {
         let m = ib.mean_luminance();
         let m2 = if m > 0.0 { (m * m) as f32 } else { 1.0 };
@@ -515,7 +530,7 @@ fn cmd_diff(a: &Path, b: &Path, map: Option<&Path>) -> Result<()> {
             .collect();
         let img = mirage::film::Image { width: ia.width, height: ia.height, data };
         output::write_exr(path, &img, Default::default())?;
-        println!("per-pixel squared error / m² → {}", path.display());
+        out!("per-pixel squared error / m² → {}", path.display());
     }
     Ok(())
 }
@@ -626,7 +641,7 @@ fn cmd_report(args: &ReportArgs, samplers: bool) -> Result<()> {
     for n in &ref_notes {
         md += &format!("- {n}\n");
     }
-    println!("{md}");
+    out!("{md}");
     if let Some(out) = &args.output {
         if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir)?;

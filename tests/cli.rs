@@ -280,3 +280,23 @@ fn info_and_diff_report_on_files() {
     let png = image::open(dir.join("a.png")).unwrap().to_rgb8();
     assert_eq!(png.get_pixel(0, 0).0, [188, 0, 0], "1.0 at −1 stop is 0.5 → sRGB 188");
 }
+
+/// A reader that stops early (`mirage info cornell | head -1`) closes stdout under the command:
+/// it ends quietly with success, not with println!'s panic (exit 101).
+#[test]
+fn a_closed_stdout_ends_the_command_quietly() {
+    use std::process::Stdio;
+    for args in [&["info", "cornell"][..], &["render", "--help"][..]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mirage"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("mirage runs");
+        drop(child.stdout.take());
+        let o = child.wait_with_output().expect("mirage ends");
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(o.status.success(), "{args:?}: {:?} {err}", o.status);
+    }
+}
