@@ -34,7 +34,9 @@
 //! their brightness. The image is the sum of two unbiased estimates of disjoint parts of the
 //! measurement; the chains no longer spend most of their mutations on the lamp and the directly
 //! lit walls, which dominate f_lum in a room lit by a ceiling lamp (256×192, 16 s, excess nMSE:
-//! glass-sphere 0.91 → 0.38, light-box-thick 7.2 → 1.9; benches/results/2026-12-07-mlt-direct.md). `--mlt-direct 0` gives every path to the chains.
+//! glass-sphere 0.91 → 0.38, light-box-thick 7.2 → 1.9; benches/results/2026-12-07-mlt-direct.md).
+//! `--mlt-direct 0` gives every path to the chains. The image mean is exactly the direct part's
+//! plus b (every step deposits luminance b in total), so a test of the mean tests b.
 //!
 //! Every chain has its own random stream (seed, chain), chains run side by side, and deposits
 //! enter the film in chain order: the image is the same for a seed at any thread count.
