@@ -280,3 +280,63 @@ fn strategy_ratios_match_sampled_densities_on_a_diffuse_path() {
         assert!((ratio / expected - 1.0).abs() < 0.1, "y_{i}: {ratio} vs {expected}");
     }
 }
+
+/// The bootstrap evaluates every connection of a light walk with a camera walk through
+/// [`WalkPair`], which computes each factor that depends on one walk once; it must give exactly
+/// what [`evaluate`] gives for the spliced path (every strategy's C*, the raster position, and
+/// the candidate's own C* alone), on
+/// diffuse walks, through the glass sphere (specular vertices), behind the thick-walled slit,
+/// and under a point light (no s = 0 strategy).
+#[test]
+fn cached_walk_factors_give_the_same_evaluation() {
+    use mirage::load::PunctualDesc;
+    use mirage::offline::mlt::path::{Evaluation, WalkPair, trace};
+    let mut point = builtin::cornell();
+    for m in &mut point.materials {
+        m.emission = Vec3::ZERO;
+    }
+    point.lights.push(PunctualDesc::Point { position: glam::vec3(2.78, 5.2, 2.8), intensity: Vec3::splat(30.0) });
+    for (name, desc) in [
+        ("cornell", builtin::cornell()),
+        ("glass-sphere", builtin::glass_sphere()),
+        ("ajar-door-thick", builtin::ajar_door_thick()),
+        ("point-light", point),
+    ] {
+        let (s, a) = scene(desc, 32, 24);
+        let mut st = RayStats::default();
+        let (mut compared, mut valid) = (0u64, 0u64);
+        let mut ev = Evaluation::default();
+        for i in 0..3000u64 {
+            let mut rng = Pcg32::from_words(&[0x3ACE, i]);
+            let mut light = Vec::new();
+            if let Some(v) = sample_light_vertex(&s, &mut rng) {
+                light.push(v);
+                extend(&s, &a, &mut rng, &mut light, 1 + (i % 5) as usize, TransportMode::Importance, &mut st);
+            }
+            let lens = PathVertex::lens(s.camera.position);
+            let raster = glam::vec2(rng.next_f32() * 32.0, rng.next_f32() * 24.0);
+            let mut eye = vec![lens];
+            if let Some(v) = trace(&s, &a, &lens, s.camera.ray_from_lens(lens.p(), raster).dir, &mut st) {
+                eye.push(v);
+                extend(&s, &a, &mut rng, &mut eye, (i % 6) as usize, TransportMode::Radiance, &mut st);
+            }
+            let pair = WalkPair::new(&s, &light, &eye);
+            for t in 1..=eye.len() {
+                for sl in 0..=light.len() {
+                    let mut path: Vec<PathVertex> = light[..sl].to_vec();
+                    path.extend(eye[..t].iter().rev());
+                    let want = evaluate(&s, &path, Forced::default());
+                    pair.evaluate(&s, sl, t, &mut ev);
+                    assert_eq!(ev.raster, want.raster, "{name}: sample {i}, s {sl}, t {t}: raster");
+                    assert_eq!(ev.contrib, want.contrib, "{name}: sample {i}, s {sl}, t {t}: C*");
+                    let own = want.raster.and_then(|r| want.contrib[sl].map(|c| (c, r)));
+                    assert_eq!(pair.contribution(&s, sl, t), own, "{name}: sample {i}, s {sl}, t {t}: own C*");
+                    compared += 1;
+                    valid += u64::from(want.contrib.iter().flatten().next().is_some());
+                }
+            }
+        }
+        eprintln!("{name}: {compared} paths compared, {valid} with a valid strategy");
+        assert!(valid > 1000, "{name}: only {valid} paths with a valid strategy");
+    }
+}

@@ -56,13 +56,14 @@ use rayon::prelude::*;
 use super::{Budget, OfflineSettings, RenderOutput};
 use crate::accel::Accel;
 use crate::bsdf::TransportMode;
+use crate::color::luminance;
 use crate::film::{Film, FilmTile};
 use crate::progress::Progress;
 use crate::sampling::{Pcg32, PixelSampler, Sampler};
 use crate::scene::Scene;
 use crate::stats::RayStats;
 use mutation::{Bidirectional, Context, Mutation, State};
-use path::{PathVertex, evaluate, extend, sample_light_vertex, trace, visible};
+use path::{PathVertex, WalkPair, extend, sample_light_vertex, trace, visible};
 use perturb::{CausticPerturbation, LensPerturbation};
 
 /// Stream tags: bootstrap samples, the bootstrap's pixel offset, chains' starts, chains.
@@ -287,23 +288,25 @@ fn candidates(
     stats: &mut RayStats,
 ) -> Vec<(usize, usize, f64)> {
     let mut out = Vec::new();
-    let mut path = Vec::with_capacity(max_vertices);
+    let pair = WalkPair::new(scene, light, eye);
+    let mut ev = path::Evaluation::default();
     for t in 1..=eye.len() {
         for s in 0..=light.len() {
             let k = s + t;
             if !(min_vertices..=max_vertices).contains(&k) {
                 continue;
             }
-            path.clear();
-            path.extend_from_slice(&light[..s]);
-            path.extend(eye[..t].iter().rev());
-            let ev = evaluate(scene, &path, path::Forced::default());
-            if ev.raster.is_none() || ev.lum(s) == 0.0 {
+            // The strategy's own C* first: most candidates end there or at their shadow ray,
+            // before their other strategies are evaluated.
+            let Some((c, _)) = pair.contribution(scene, s, t) else { continue };
+            let l = luminance(c.as_vec3());
+            if !(l > 0.0 && l.is_finite()) {
                 continue;
             }
-            if s > 0 && !visible(scene, accel, &path[s - 1], &path[s], stats) {
+            if s > 0 && !visible(scene, accel, &light[s - 1], &eye[t - 1], stats) {
                 continue;
             }
+            pair.evaluate(scene, s, t, &mut ev);
             let inv = ev.inverse_sum(0..=k, |j| reach(j) * reach(k - j));
             let w = 1.0 / inv;
             if w > 0.0 && w.is_finite() {
