@@ -230,7 +230,14 @@ pub fn supported(scene: &Scene) -> Result<(), String> {
 
 /// Probability that a bootstrap walk reaches `v` vertices.
 fn reach(v: usize) -> f64 {
-    if v <= RR_FROM { 1.0 } else { RR_KEEP.powi((v - RR_FROM) as i32) }
+    /// `RR_KEEP.powi(i)` for the lengths walks reach in practice.
+    static POWERS: std::sync::LazyLock<[f64; 256]> =
+        std::sync::LazyLock::new(|| std::array::from_fn(|i| RR_KEEP.powi(i as i32)));
+    match v.saturating_sub(RR_FROM) {
+        0 => 1.0,
+        i if i < 256 => POWERS[i],
+        i => RR_KEEP.powi(i.min(i32::MAX as usize) as i32),
+    }
 }
 
 /// One bootstrap sample's walks (deterministic in (seed, i, offset)).

@@ -105,8 +105,15 @@ fn deletion_weight(kd: usize) -> f64 {
     match kd {
         0 => 0.25,
         1 => 0.5,
-        _ => 0.5f64.powi(kd as i32 + 1),
+        _ => half_pow(kd + 1),
     }
+}
+
+/// 2^−j, exactly as `0.5f64.powi(j)` gives it (a power of two), without its loop: the
+/// proposal densities sum these over every length up to `--max-depth`.
+#[inline]
+fn half_pow(j: usize) -> f64 {
+    if j <= 1022 { f64::from_bits((1023 - j as u64) << 52) } else { 0.5f64.powi(j.min(i32::MAX as usize) as i32) }
 }
 
 /// Probability of deleting `kd` vertices after position `l` of `path`.
@@ -133,7 +140,7 @@ fn addition_weight(kd: usize, ka: usize) -> f64 {
     match kd.abs_diff(ka) {
         0 => 0.5,
         1 => 0.2,
-        j => 0.2 * 0.5f64.powi(j as i32),
+        j => 0.2 * half_pow(j),
     }
 }
 
