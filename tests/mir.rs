@@ -92,7 +92,7 @@ fn mir_estimate(
 fn unclamped_mir_converges_to_pt() {
     for (name, desc) in [("cornell", builtin::cornell()), ("direct-indirect", builtin::direct_indirect())] {
         let (s, a) = scene(desc, 48, 48);
-        let filter = PathFilter { edges: None, min_second_segment: min_segment(&s) };
+        let filter = PathFilter { min_second_segment: min_segment(&s), ..Default::default() };
         let imgs: Vec<Image> = (0..16)
             .map(|b| {
                 let st = OfflineSettings {

@@ -340,3 +340,46 @@ fn cached_walk_factors_give_the_same_evaluation() {
         assert!(valid > 1000, "{name}: only {valid} paths with a valid strategy");
     }
 }
+
+/// The direct part is defined twice: on a complete path (`in_direct_part`, which the chains and
+/// the bootstrap leave out) and along a camera walk (`pt::DirectPart`, which the path tracer
+/// counts). Both must name the same paths, or light is lost or counted twice: checked for every
+/// sequence of delta and non-delta bounces up to nine long, for emitter hits and next-event
+/// estimation, and a walk that stops early (`can_follow` false) must have nothing left to count.
+#[test]
+fn the_path_tracer_counts_exactly_the_direct_part() {
+    use mirage::offline::mlt::in_direct_part;
+    use mirage::offline::pt::DirectPart;
+    let counts_later = |deltas: &[bool]| {
+        // Some extension of the walk by up to four bounces counts a path.
+        (0..(1u32 << 4)).any(|bits| {
+            (0..=4).any(|extra| {
+                let mut part = DirectPart::default();
+                for &d in deltas {
+                    part.bounce(d);
+                }
+                (0..extra).for_each(|j| part.bounce(bits >> j & 1 == 1));
+                extra > 0 && (part.emitter_counts() || part.nee_counts())
+            })
+        })
+    };
+    for d in 0..=9usize {
+        for bits in 0..(1u32 << d) {
+            // deltas[j]: whether x_{j+1} (the camera walk's j-th hit) scattered by a delta lobe.
+            let deltas: Vec<bool> = (0..d).map(|j| bits >> j & 1 == 1).collect();
+            let mut part = DirectPart::default();
+            for &x in &deltas {
+                part.bounce(x);
+            }
+            // An emitter hit at x_{d+1}: y_0 = x_{d+1}, y_i = x_{d+1−i}, the lens y_{d+1}.
+            let emitter = in_direct_part(d + 2, |i| deltas[d - i]);
+            assert_eq!(part.emitter_counts(), emitter, "emitter hit after {deltas:?}");
+            // Next-event estimation at a non-delta x_{d+1}: y_1 = x_{d+1}, y_i = x_{d+2−i}.
+            let nee = in_direct_part(d + 3, |i| if i == 1 { false } else { deltas[d + 1 - i] });
+            assert_eq!(part.nee_counts(), nee, "next-event estimation after {deltas:?}");
+            if !part.can_follow() {
+                assert!(!counts_later(&deltas), "{deltas:?}: the walk stopped with paths still to count");
+            }
+        }
+    }
+}

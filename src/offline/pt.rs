@@ -38,6 +38,74 @@ pub struct PathFilter {
     /// (the 1/d² of G); on this domain both it and the path tracer have finite variance, so
     /// their agreement can be tested statistically.
     pub min_second_segment: f32,
+    /// Only the direct part that `--mode mlt` path traces beside its chains
+    /// (`mlt::in_direct_part`): paths whose camera-side vertices, all but the one next to the
+    /// light, are delta (a light or a surface it lights directly, seen directly or through
+    /// mirrors and glass), and paths with a delta vertex next to the light, one next to the
+    /// camera and no two non-delta vertices adjacent (no edge a connection could make).
+    pub mlt_direct_part: bool,
+}
+
+/// Where a camera walk stands against `--mode mlt`'s direct part (`mlt::in_direct_part`), from
+/// the delta flags of its bounces so far x_1 … x_d (the walk at x_{d+1}).
+#[derive(Clone, Copy, Debug)]
+pub struct DirectPart {
+    /// x_1 … x_d all delta.
+    delta_chain: bool,
+    /// x_1 … x_{d−1} all delta.
+    delta_chain_before: bool,
+    /// x_d delta (true before the first bounce).
+    last_delta: bool,
+    /// x_1 delta (true before the first bounce).
+    first_delta: bool,
+    /// No two adjacent vertices of x_1 … x_d non-delta.
+    no_adjacent_nondelta: bool,
+    bounces: u32,
+}
+
+impl Default for DirectPart {
+    fn default() -> Self {
+        DirectPart {
+            delta_chain: true,
+            delta_chain_before: true,
+            last_delta: true,
+            first_delta: true,
+            no_adjacent_nondelta: true,
+            bounces: 0,
+        }
+    }
+}
+
+impl DirectPart {
+    /// The walk scattered at its current vertex, with a delta lobe or not.
+    pub fn bounce(&mut self, delta: bool) {
+        if self.bounces == 0 {
+            self.first_delta = delta;
+        } else if !delta && !self.last_delta {
+            self.no_adjacent_nondelta = false;
+        }
+        self.delta_chain_before = self.delta_chain;
+        self.delta_chain &= delta;
+        self.last_delta = delta;
+        self.bounces += 1;
+    }
+
+    /// An emitter hit at x_{d+1} makes a path of the direct part: everything between the
+    /// camera and x_d delta, or no edge a connection could make (x_1 and x_d delta, no two
+    /// adjacent non-delta vertices).
+    pub fn emitter_counts(&self) -> bool {
+        self.delta_chain_before || (self.first_delta && self.last_delta && self.no_adjacent_nondelta)
+    }
+
+    /// Next-event estimation at x_{d+1} makes a path of the direct part (x_1 … x_d delta).
+    pub fn nee_counts(&self) -> bool {
+        self.delta_chain
+    }
+
+    /// Some later vertex of the walk can still make a path of the direct part.
+    pub fn can_follow(&self) -> bool {
+        self.delta_chain || (self.first_delta && self.no_adjacent_nondelta)
+    }
 }
 
 /// [`radiance`] restricted by `filter`: emission found after d bounces has d + 1 edges,
@@ -65,12 +133,14 @@ pub fn radiance_of_length(
     let mut prev_delta = true;
     let mut prev_p = ray.origin;
     let mut depth = 0u32;
+    let mut part = DirectPart::default();
+    let specular_only = filter.mlt_direct_part;
     loop {
         stats.closest += 1;
         let Some(hit) = accel.intersect(ray.origin, ray.dir, f32::INFINITY) else {
             // The ray leaves the scene: the lights at infinity along it (the sky, a soft sun),
             // weighed against next-event estimation as an emitter hit is.
-            if !scene.lights.escaped.is_empty() && counts(depth + 1) {
+            if !scene.lights.escaped.is_empty() && counts(depth + 1) && (!specular_only || part.emitter_counts()) {
                 let le = scene.escaped(ray.dir);
                 if le != Vec3::ZERO {
                     if depth == 0 || prev_delta {
@@ -94,7 +164,7 @@ pub fn radiance_of_length(
         // Emission seen along the ray: full weight for camera rays and after delta bounces,
         // otherwise MIS against next-event estimation.
         let le = scene.emitted(hit.tri, sp.ng, sp.uv, wo);
-        if le != Vec3::ZERO && counts(depth + 1) {
+        if le != Vec3::ZERO && counts(depth + 1) && (!specular_only || part.emitter_counts()) {
             if depth == 0 || prev_delta {
                 l += beta * le;
             } else {
@@ -117,6 +187,7 @@ pub fn radiance_of_length(
         let u_light_pos = sampler.next_2d();
         if !bsdf.is_delta()
             && counts(depth + 2)
+            && (!specular_only || part.nee_counts())
             && let Some(ls) = scene.sample_li(sp.p, u_light, u_light_pos)
             && (depth > 0 || ls.dist >= min_seg)
         {
@@ -131,6 +202,10 @@ pub fn radiance_of_length(
             }
         }
 
+        // Once neither kind can follow, the path ends.
+        if specular_only && !part.can_follow() {
+            break;
+        }
         // Continue the path by sampling the BSDF.
         let u_lobe = sampler.next_1d();
         let u_dir = sampler.next_2d();
@@ -139,6 +214,7 @@ pub fn radiance_of_length(
         if beta == Vec3::ZERO || !beta.is_finite() {
             break;
         }
+        part.bounce(bs.delta);
         prev_pdf_w = bs.pdf_w;
         prev_delta = bs.delta;
         prev_p = sp.p;

@@ -25,16 +25,19 @@
 //! image is `b / passes · Σ f/f_lum`, the scale of the other modes (plus the direct part below).
 //!
 //! **Direct part** (`--mlt-direct N`, default 1; Mitsuba's split of direct illumination off the
-//! chains): paths of at most [`DIRECT_VERTICES`] vertices — a light seen directly, and a surface
-//! lit directly (or a light seen in a mirror) — are left to the path tracer restricted to them
-//! ([`super::pt::radiance_of_length`] with one or two segments: next-event estimation and BSDF
-//! sampling under the power heuristic), N samples a pixel each pass, averaged as pixel samples
-//! under the chains' splats. The chains' target is f_lum on paths of at least four vertices (a
-//! proposal outside it has target 0 and is rejected), the bootstrap counts only those, and b is
-//! their brightness. The image is the sum of two unbiased estimates of disjoint parts of the
-//! measurement; the chains no longer spend most of their mutations on the lamp and the directly
-//! lit walls, which dominate f_lum in a room lit by a ceiling lamp (256×192, 16 s, excess nMSE:
-//! glass-sphere 0.91 → 0.38, light-box-thick 7.2 → 1.9; benches/results/2026-12-07-mlt-direct.md).
+//! chains, extended): the paths [`in_direct_part`] names — a light, or a surface it lights
+//! directly, seen directly or through mirrors and glass, and the paths no connection can make
+//! (caustics seen through glass) — are left to the path tracer restricted to them
+//! ([`super::pt::PathFilter::mlt_direct_part`]: emitters hit after delta bounces, next-event
+//! estimation at the first non-delta vertex, its MIS unchanged), N samples a pixel each pass,
+//! averaged as pixel samples under the chains' splats. The chains' target is f_lum on the other
+//! paths (a proposal in the direct part has target 0 and is rejected), the bootstrap counts only
+//! those, and b is their brightness. The image is the sum of two unbiased estimates of disjoint
+//! parts of the measurement; the chains no longer spend most of their mutations on the lamp and
+//! the directly lit walls, which dominate f_lum in a room lit by a ceiling lamp (256×192, 16 s,
+//! excess nMSE: glass-sphere 0.91 → 0.38, light-box-thick 7.2 → 1.9, with paths of ≤ 3 vertices
+//! as the direct part), nor get stuck on paths that no mutation can move (glass-sphere
+//! at 5.33 s: see benches/results/2026-12-07-mlt-direct.md).
 //! `--mlt-direct 0` gives every path to the chains. The image mean is exactly the direct part's
 //! plus b (every step deposits luminance b in total), so a test of the mean tests b.
 //!
@@ -138,14 +141,32 @@ pub struct MltSettings {
     pub bootstrap: usize,
     /// Mutation types in use.
     pub mutations: Vec<MutationKind>,
-    /// Path-traced samples per pixel and pass for the direct part (paths of at most
-    /// [`DIRECT_VERTICES`] vertices: lights seen directly and direct lighting), which the chains
+    /// Path-traced samples per pixel and pass for the direct part ([`in_direct_part`]: lights
+    /// and directly lit surfaces, seen directly or through specular surfaces), which the chains
     /// then leave out; 0: the chains take every path.
     pub direct: u32,
 }
 
-/// Paths of at most this many vertices (light, surface, lens) are the direct part.
-pub const DIRECT_VERTICES: usize = 3;
+/// Whether a path of `k` vertices y_0 (light) … y_{k−1} (lens) is in the direct part, whose
+/// y_i is specular when `specular(i)`:
+/// - every vertex between the lens and y_1 is specular: a light seen directly (k = 2) or a
+///   surface it lights (k = 3), either of them also seen through mirrors and glass; or
+/// - no edge of the path can be a connection (y_1 and y_{k−2} specular, and no two
+///   non-specular vertices adjacent): a caustic seen in a mirror or through glass (L S D S E),
+///   which only a camera walk reaching the light makes. No mutation moves such a path (every
+///   perturbation and the bidirectional mutation join two non-specular vertices), so the few
+///   chains that start on one keep its pixel for the whole render (on the glass sphere, bootstrap
+///   samples of 0.5–1 % of b each, 5–11 chains on one pixel).
+///
+/// The path tracer finds the first kind by hitting the light after delta bounces or by
+/// next-event estimation at the first non-delta vertex, the second by hitting the light after
+/// a delta bounce, with its own weights (`pt::PathFilter::mlt_direct_part`).
+pub fn in_direct_part(k: usize, specular: impl Fn(usize) -> bool) -> bool {
+    if (2..k.saturating_sub(1)).all(&specular) {
+        return true;
+    }
+    specular(1) && specular(k - 2) && (1..k - 2).all(|i| specular(i) || specular(i + 1))
+}
 
 impl Default for MltSettings {
     fn default() -> Self {
@@ -154,9 +175,11 @@ impl Default for MltSettings {
 }
 
 impl MltSettings {
-    /// The fewest vertices of a path the chains take.
-    pub fn min_vertices(&self) -> usize {
-        if self.direct > 0 { DIRECT_VERTICES + 1 } else { 2 }
+    /// Whether the chains take the path of `k` vertices whose y_i is specular when
+    /// `specular(i)`: every path of at least two vertices when the direct part is off, else
+    /// those outside it.
+    pub fn chains_take(&self, k: usize, specular: impl Fn(usize) -> bool) -> bool {
+        k >= 2 && (self.direct == 0 || !in_direct_part(k, specular))
     }
 
     /// Probability of each type in use: the bidirectional mutation half (all of it alone), the
@@ -291,7 +314,7 @@ fn candidates(
     scene: &Scene,
     accel: &Accel,
     (light, eye): (&[PathVertex], &[PathVertex]),
-    (min_vertices, max_vertices): (usize, usize),
+    (mlt, max_vertices): (&MltSettings, usize),
     stats: &mut RayStats,
 ) -> Vec<(usize, usize, f64)> {
     let mut out = Vec::new();
@@ -300,7 +323,8 @@ fn candidates(
     for t in 1..=eye.len() {
         for s in 0..=light.len() {
             let k = s + t;
-            if !(min_vertices..=max_vertices).contains(&k) {
+            let specular = |i: usize| if i < s { light[i].is_specular() } else { eye[k - 1 - i].is_specular() };
+            if k > max_vertices || !mlt.chains_take(k, specular) {
                 continue;
             }
             // The strategy's own C* first: most candidates end there or at their shadow ray,
@@ -336,7 +360,8 @@ pub fn find_state(
     let mut st = RayStats::default();
     for i in 0..1_000_000 {
         let (l, e) = bootstrap_walks(scene, accel, seed, i, 0, max_vertices, &mut st);
-        for (s, t, _) in candidates(scene, accel, (&l, &e), (2, max_vertices), &mut st) {
+        let every = MltSettings { direct: 0, ..Default::default() };
+        for (s, t, _) in candidates(scene, accel, (&l, &e), (&every, max_vertices), &mut st) {
             let mut p: Vec<PathVertex> = l[..s].to_vec();
             p.extend(e[..t].iter().rev());
             if let Some(state) = State::new(scene, p)
@@ -375,8 +400,7 @@ pub fn render_mlt(
     let mut stats = RayStats::default();
     let seed = settings.seed;
     let max_vertices = settings.max_depth as usize + 2;
-    let min_vertices = mlt.min_vertices();
-    let lengths = (min_vertices, max_vertices);
+    let lengths = (mlt, max_vertices);
     let cx = Context { scene, accel, max_vertices };
     let offset = Pcg32::from_words(&[seed, TAG_OFFSET]).next_u32() as u64;
 
@@ -454,11 +478,11 @@ pub fn render_mlt(
         let k = mlt.chains as u64;
         n / k + u64::from((c as u64) < n % k)
     };
-    // The direct part: path-traced samples restricted to paths of at most DIRECT_VERTICES
-    // vertices, `mlt.direct` a pixel each pass, averaged as pixel samples under the splats.
+    // The direct part: path-traced samples restricted to it, `mlt.direct` a pixel each pass,
+    // averaged as pixel samples under the splats.
     let direct_settings = OfflineSettings { aovs: false, ..settings.clone() };
     let tiles = film.tiles(super::TILE);
-    let only_direct = super::pt::PathFilter { edges: Some((1, DIRECT_VERTICES as u32 - 1)), ..Default::default() };
+    let only_direct = super::pt::PathFilter { mlt_direct_part: true, ..Default::default() };
     let direct_fn = |raster: Vec2, sampler: &mut PixelSampler, _: &mut FilmTile, st: &mut RayStats| {
         let ray = cam.generate_ray(raster, sampler.next_2d());
         super::pt::radiance_of_length(scene, accel, ray, sampler, settings.max_depth, &only_direct, st)
@@ -501,7 +525,8 @@ pub fn render_mlt(
                     };
                     counts[slot].made += 1;
                     // Paths of the direct part are not the chains' (target 0 there).
-                    let a = if p.state.path.len() < min_vertices { 0.0 } else { p.accept };
+                    let y = &p.state.path;
+                    let a = if mlt.chains_take(y.len(), |i| y[i].is_specular()) { p.accept } else { 0.0 };
                     if a > 0.0 {
                         deposits.push((p.state.raster(), p.state.eval.colour() * (a * b) as f32));
                     }
