@@ -286,10 +286,10 @@ pub struct RenderArgs {
     /// direction into a specular chain). The bidirectional mutation takes half the proposals.
     #[arg(long, default_value = "bidir,lens,caustic")]
     pub mutations: String,
-    /// mlt: path-traced samples per pixel and pass for the direct part (lights seen directly and
-    /// direct lighting: paths of at most three vertices), which the chains then leave to it, so
-    /// that they spend their mutations on indirect light and caustics; 0: the chains take every
-    /// path.
+    /// mlt: path-traced samples per pixel and pass for the direct part (lights and directly lit
+    /// surfaces, seen directly or through mirrors and glass, and paths no connection can make,
+    /// which no mutation could move), which the chains then leave to it, so that they spend
+    /// their mutations on indirect light and caustics; 0: the chains take every path.
     #[arg(long, default_value_t = crate::offline::mlt::MltSettings::default().direct)]
     pub mlt_direct: u32,
     /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).
