@@ -313,7 +313,10 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             options.mlt.bootstrap,
             m.bootstrap_nonzero,
             if options.mlt.direct > 0 {
-                format!(", paths outside the direct part; the direct part path traced at {} spp a pass", options.mlt.direct)
+                format!(
+                    ", paths outside the direct part; the direct part path traced at {} spp a pass",
+                    options.mlt.direct
+                )
             } else {
                 String::new()
             },
