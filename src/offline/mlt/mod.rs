@@ -142,8 +142,8 @@ pub struct MltSettings {
     /// Mutation types in use.
     pub mutations: Vec<MutationKind>,
     /// Path-traced samples per pixel and pass for the direct part ([`in_direct_part`]: lights
-    /// and directly lit surfaces, seen directly or through specular surfaces), which the chains
-    /// then leave out; 0: the chains take every path.
+    /// and directly lit surfaces, seen directly or through specular surfaces, and the paths no
+    /// connection can make), which the chains then leave out; 0: the chains take every path.
     pub direct: u32,
 }
 
