@@ -296,12 +296,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             .filter(|(_, c)| c.proposed > 0)
             .map(|(k, c)| {
                 let pct = |x: u64| 100.0 * x as f64 / c.proposed.max(1) as f64;
-                format!(
-                    "{} {:.1} % rejected ({:.1} % not applicable or failed)",
-                    k.name(),
-                    100.0 - pct(c.accepted),
-                    100.0 - pct(c.made)
-                )
+                format!("{} {:.1} % rejected ({:.1} % failed)", k.name(), 100.0 - pct(c.accepted), 100.0 - pct(c.made))
             })
             .collect();
         out!(
@@ -322,6 +317,9 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             },
             per_type.join(", ")
         );
+        if m.idle_steps > 0 {
+            out!("  {:.1} % of the steps stayed: no mutation in use applied to the path", 100.0 * m.idle_fraction());
+        }
     }
     if let Some(fs) = frame_stats {
         for w in &fs.sampler.warnings {

@@ -43,7 +43,8 @@ pub enum Mode {
     /// light that arrives through slits and holes, and caustics.
     Pssmlt,
     /// Path-space Metropolis light transport (Veach & Guibas 1997): chains over complete paths
-    /// with the bidirectional mutation and the lens and caustic perturbations (--mutations),
+    /// with the bidirectional mutation, the lens, caustic and multi-chain perturbations and the
+    /// lens sub-path mutation (--mutations),
     /// started without bias from a bidirectional bootstrap (--mlt-chains, --bootstrap). For
     /// caustics and light through slits and holes. Not with lights at infinity.
     Mlt,
@@ -283,8 +284,13 @@ pub struct RenderArgs {
     pub gather: GatherArgs,
     /// mlt: the mutation types, comma-separated: bidir (bidirectional: delete and regrow part of
     /// the path), lens (move the image point, keep the specular chain), caustic (turn the
-    /// direction into a specular chain). The bidirectional mutation takes half the proposals.
-    #[arg(long, default_value = "bidir,lens,caustic")]
+    /// direction into a specular chain), multichain (move the image point and turn the
+    /// direction at each diffuse vertex before a specular chain), subpath (lens sub-path: a new
+    /// camera ray from a rover that stratifies the chains over the pixels, the same specular
+    /// bounces, joined to the kept light end; off by default: at its share it cost accuracy on
+    /// every scene measured). The bidirectional mutation takes half the proposals, the others
+    /// that apply to the path share the rest.
+    #[arg(long, default_value = "bidir,lens,caustic,multichain")]
     pub mutations: String,
     /// mlt: path-traced samples per pixel and pass for the direct part (lights and directly lit
     /// surfaces, seen directly or through mirrors and glass, and paths no connection can make,
@@ -518,5 +524,25 @@ pub fn parse_vec2(s: &str) -> Result<Vec2, String> {
     match v.as_slice() {
         [x, y] if x.is_finite() && y.is_finite() => Ok(Vec2::new(*x, *y)),
         _ => Err(format!("'{s}' is not two finite numbers x,y")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RenderArgs;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrapper {
+        #[command(flatten)]
+        render: RenderArgs,
+    }
+
+    /// The flags' defaults give the library's default MLT settings (the `--mutations` string
+    /// and `MltSettings::default` name the same types).
+    #[test]
+    fn the_mlt_flags_default_to_the_librarys_settings() {
+        let options = Wrapper::parse_from(["mirage"]).render.options().unwrap();
+        assert_eq!(options.mlt, crate::offline::mlt::MltSettings::default());
     }
 }

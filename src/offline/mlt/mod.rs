@@ -2,11 +2,14 @@
 //! with the formulation of Fischer and of Cline & Egbert, docs/bibliography.md).
 //!
 //! The chains walk over complete paths ȳ = y_0 … y_{k−1} ([`path`]), with target f_lum(ȳ), the
-//! luminance of the measurement contribution, and the mutations of [`mutation`] and [`perturb`]:
-//! the bidirectional mutation (half of the proposals when perturbations are on), the lens and
-//! the caustic perturbation (the other half, shared). The type of each proposal is drawn with
-//! fixed probabilities, independent of the state, so each type keeps detailed balance on its own
-//! (Fischer §3.5.4); a type that does not apply to the state proposes nothing (the state stays).
+//! luminance of the measurement contribution, and the mutations of [`mutation`], [`perturb`]
+//! and [`subpath`]: the bidirectional mutation (half of the proposals when others are on), and
+//! the lens, caustic and multi-chain perturbations and the lens sub-path mutation with its
+//! rover (the other half, shared equally among those that apply to the current path:
+//! [`MltSettings::choose`]). The bidirectional mutation's probability does not depend on the
+//! state, and each other type's share depends only on the path's length and which vertices are
+//! specular, which its proposals keep, so each type keeps detailed balance on its own
+//! (Fischer §3.5.4); when none applies the state stays for that step.
 //! Selectable with `--mutations`.
 //!
 //! **Normalisation and start-up** (no start-up bias; Veach 1997 §11.3): `bootstrap` independent
@@ -50,6 +53,7 @@
 pub mod mutation;
 pub mod path;
 pub mod perturb;
+pub mod subpath;
 
 use std::time::Instant;
 
@@ -67,7 +71,8 @@ use crate::scene::Scene;
 use crate::stats::RayStats;
 use mutation::{Bidirectional, Context, Mutation, State};
 use path::{PathVertex, WalkPair, extend, sample_light_vertex, trace, visible};
-use perturb::{CausticPerturbation, LensPerturbation};
+use perturb::{CausticPerturbation, LensPerturbation, MultiChainPerturbation};
+use subpath::{LensSubpath, Rover};
 
 /// Stream tags: bootstrap samples, the bootstrap's pixel offset, chains' starts, chains.
 const TAG_BOOTSTRAP: u64 = 0x4d4c_5442_4f4f;
@@ -89,11 +94,26 @@ pub enum MutationKind {
     Lens,
     /// Caustic perturbation.
     Caustic,
+    /// Multi-chain perturbation.
+    MultiChain,
+    /// Lens sub-path mutation (with the rover).
+    Subpath,
 }
 
 impl MutationKind {
     /// All types, in the order of the statistics.
-    pub const ALL: [MutationKind; 3] = [MutationKind::Bidir, MutationKind::Lens, MutationKind::Caustic];
+    pub const ALL: [MutationKind; 5] = [
+        MutationKind::Bidir,
+        MutationKind::Lens,
+        MutationKind::Caustic,
+        MutationKind::MultiChain,
+        MutationKind::Subpath,
+    ];
+
+    /// The types in use by default (`--mutations`): all but the lens sub-path mutation, which
+    /// at its share cost accuracy on every scene measured (benches/results/2026-12-07-mlt-mutations.md).
+    pub const DEFAULT: [MutationKind; 4] =
+        [MutationKind::Bidir, MutationKind::Lens, MutationKind::Caustic, MutationKind::MultiChain];
 
     /// Flag name.
     pub fn name(self) -> &'static str {
@@ -101,6 +121,8 @@ impl MutationKind {
             MutationKind::Bidir => "bidir",
             MutationKind::Lens => "lens",
             MutationKind::Caustic => "caustic",
+            MutationKind::MultiChain => "multichain",
+            MutationKind::Subpath => "subpath",
         }
     }
 
@@ -110,23 +132,24 @@ impl MutationKind {
             MutationKind::Bidir => &Bidirectional,
             MutationKind::Lens => &LensPerturbation,
             MutationKind::Caustic => &CausticPerturbation,
+            MutationKind::MultiChain => &MultiChainPerturbation,
+            MutationKind::Subpath => &LensSubpath,
         }
     }
 
-    /// Parses a comma-separated list ("bidir,lens,caustic").
+    /// Parses a comma-separated list ("bidir,lens,caustic,multichain,subpath").
     pub fn parse_list(s: &str) -> Result<Vec<MutationKind>, String> {
         let mut out = Vec::new();
         for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-            let k = MutationKind::ALL
-                .into_iter()
-                .find(|k| k.name() == part)
-                .ok_or_else(|| format!("--mutations: unknown mutation '{part}' (bidir, lens, caustic)"))?;
+            let k = MutationKind::ALL.into_iter().find(|k| k.name() == part).ok_or_else(|| {
+                format!("--mutations: unknown mutation '{part}' (bidir, lens, caustic, multichain, subpath)")
+            })?;
             if !out.contains(&k) {
                 out.push(k);
             }
         }
         if out.is_empty() {
-            return Err("--mutations: name at least one of bidir, lens, caustic".into());
+            return Err("--mutations: name at least one of bidir, lens, caustic, multichain, subpath".into());
         }
         Ok(out)
     }
@@ -170,7 +193,7 @@ pub fn in_direct_part(k: usize, specular: impl Fn(usize) -> bool) -> bool {
 
 impl Default for MltSettings {
     fn default() -> Self {
-        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::ALL.to_vec(), direct: 1 }
+        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::DEFAULT.to_vec(), direct: 1 }
     }
 }
 
@@ -182,23 +205,27 @@ impl MltSettings {
         k >= 2 && (self.direct == 0 || !in_direct_part(k, specular))
     }
 
-    /// Probability of each type in use: the bidirectional mutation half (all of it alone), the
-    /// perturbations the rest in equal shares.
-    pub fn probabilities(&self) -> Vec<(MutationKind, f64)> {
+    /// The type of the next proposal from `x`, for a uniform `u` ∈ [0, 1): the bidirectional
+    /// mutation with probability ½ (1 when it is the only type in use, whatever x is), the
+    /// perturbations in use that apply to x ([`Mutation::applies`]) the rest in equal shares;
+    /// `None` when none of them applies (the state stays for that step). A perturbation's share
+    /// depends only on what its proposals keep (length, specular vertices), so it is the same at
+    /// both ends of each of its moves.
+    pub fn choose(&self, x: &State, u: f64) -> Option<MutationKind> {
         let bidir = self.mutations.contains(&MutationKind::Bidir);
-        let others = self.mutations.iter().filter(|&&k| k != MutationKind::Bidir).count();
-        self.mutations
-            .iter()
-            .map(|&k| {
-                let p = match (k, bidir, others) {
-                    (MutationKind::Bidir, _, 0) => 1.0,
-                    (MutationKind::Bidir, _, _) => 0.5,
-                    (_, true, n) => 0.5 / n as f64,
-                    (_, false, n) => 1.0 / n as f64,
-                };
-                (k, p)
-            })
-            .collect()
+        let perturbations = || self.mutations.iter().copied().filter(|&k| k != MutationKind::Bidir);
+        let p_bidir = match (bidir, perturbations().next().is_some()) {
+            (false, _) => 0.0,
+            (true, false) => return Some(MutationKind::Bidir),
+            (true, true) => 0.5,
+        };
+        if u < p_bidir {
+            return Some(MutationKind::Bidir);
+        }
+        let n = perturbations().filter(|k| k.mutation().applies(x)).count();
+        let v = (u - p_bidir) / (1.0 - p_bidir);
+        let i = ((v * n as f64) as usize).min(n.checked_sub(1)?);
+        perturbations().filter(|k| k.mutation().applies(x)).nth(i)
     }
 }
 
@@ -221,18 +248,29 @@ pub struct MltStats {
     /// Bootstrap samples with a non-zero weight.
     pub bootstrap_nonzero: u64,
     /// Per type, in [`MutationKind::ALL`]'s order.
-    pub counts: [MutationCounts; 3],
+    pub counts: [MutationCounts; MutationKind::ALL.len()],
     /// Chains that accepted none of their proposals (at least 32 of them).
     pub stuck_chains: u64,
     /// Sum over steps of the current path's vertex count (mean path length = this / steps).
     pub vertex_steps: u64,
+    /// Steps on which no mutation in use applied to the state (it stayed).
+    pub idle_steps: u64,
 }
 
 impl MltStats {
+    /// The chains' steps: proposals and idle steps.
+    pub fn steps(&self) -> u64 {
+        self.counts.iter().map(|c| c.proposed).sum::<u64>() + self.idle_steps
+    }
+
     /// Mean vertex count of the chains' states over their steps.
     pub fn mean_path(&self) -> f64 {
-        let steps: u64 = self.counts.iter().map(|c| c.proposed).sum();
-        self.vertex_steps as f64 / steps.max(1) as f64
+        self.vertex_steps as f64 / self.steps().max(1) as f64
+    }
+
+    /// Share of the steps on which no mutation in use applied.
+    pub fn idle_fraction(&self) -> f64 {
+        self.idle_steps as f64 / self.steps().max(1) as f64
     }
 
     /// Accepted over proposed, all types together.
@@ -378,6 +416,7 @@ pub fn find_state(
 struct Chain {
     rng: Pcg32,
     state: State,
+    rover: Rover,
     proposed: u64,
     accepted: u64,
 }
@@ -444,6 +483,7 @@ pub fn render_mlt(
 
     // Chains, each from a connected path chosen ∝ W (none when only the direct part has light).
     let n_chains = if b > 0.0 { mlt.chains as u64 } else { 0 };
+    let pixels = cam.pixel_count() as u64;
     let mut chains: Vec<Chain> = (0..n_chains)
         .into_par_iter()
         .map(|c| {
@@ -467,13 +507,12 @@ pub fn render_mlt(
             let mut p: Vec<PathVertex> = l[..s].to_vec();
             p.extend(e[..t].iter().rev());
             let state = State::new(scene, p).expect("a bootstrap candidate has a contribution");
-            Chain { rng: Pcg32::from_words(&[seed, TAG_CHAIN, c]), state, proposed: 0, accepted: 0 }
+            let rover = Rover::new(seed, c, pixels);
+            Chain { rng: Pcg32::from_words(&[seed, TAG_CHAIN, c]), state, rover, proposed: 0, accepted: 0 }
         })
         .collect();
     drop(cdf);
 
-    let probabilities = mlt.probabilities();
-    let pixels = cam.pixel_count() as u64;
     let per_chain = |c: usize, n: u64| -> u64 {
         let k = mlt.chains as u64;
         n / k + u64::from((c as u64) < n % k)
@@ -493,32 +532,33 @@ pub fn render_mlt(
             stats +=
                 super::pixel_pass(scene, &direct_settings, &mut film, &tiles, first..first + mlt.direct, &direct_fn);
         }
-        let results: Vec<(Deposits, RayStats, [MutationCounts; 3], u64)> = chains
+        let results: Vec<(Deposits, RayStats, [MutationCounts; MutationKind::ALL.len()], u64, u64)> = chains
             .par_iter_mut()
             .enumerate()
             .map(|(c, ch)| {
                 let n = per_chain(c, pixels);
                 let mut deposits = Vec::with_capacity(2 * n as usize);
                 let mut st = RayStats::default();
-                let mut counts = [MutationCounts::default(); 3];
+                let mut counts = [MutationCounts::default(); MutationKind::ALL.len()];
                 let mut vertex_steps = 0u64;
+                let mut idle = 0u64;
                 for _ in 0..n {
                     st.samples += 1;
                     vertex_steps += ch.state.path.len() as u64;
-                    let mut u = ch.rng.next_f64();
-                    let kind = probabilities
-                        .iter()
-                        .find(|(_, p)| {
-                            let hit = u < *p;
-                            u -= p;
-                            hit
-                        })
-                        .unwrap_or(probabilities.last().expect("at least one mutation"))
-                        .0;
+                    let Some(kind) = mlt.choose(&ch.state, ch.rng.next_f64()) else {
+                        idle += 1;
+                        deposits.push((ch.state.raster(), ch.state.eval.colour() * b as f32));
+                        continue;
+                    };
                     let slot = MutationKind::ALL.iter().position(|&k| k == kind).expect("a known kind");
                     counts[slot].proposed += 1;
                     ch.proposed += 1;
-                    let proposal = kind.mutation().propose(&cx, &ch.state, &mut ch.rng, &mut st);
+                    let proposal = if kind == MutationKind::Subpath {
+                        let raster = ch.rover.next_raster(cam.width, &mut ch.rng);
+                        LensSubpath.propose_at(&cx, &ch.state, raster, &mut ch.rng, &mut st)
+                    } else {
+                        kind.mutation().propose(&cx, &ch.state, &mut ch.rng, &mut st)
+                    };
                     let Some(p) = proposal else {
                         deposits.push((ch.state.raster(), ch.state.eval.colour() * b as f32));
                         continue;
@@ -539,13 +579,14 @@ pub fn render_mlt(
                         ch.state = p.state;
                     }
                 }
-                (deposits, st, counts, vertex_steps)
+                (deposits, st, counts, vertex_steps, idle)
             })
             .collect();
         let mut tile = FilmTile::new(0, 0, 0, 0, false);
-        for (deposits, st, counts, vs) in results {
+        for (deposits, st, counts, vs, idle) in results {
             tile.splats.extend(deposits);
             chain_stats.vertex_steps += vs;
+            chain_stats.idle_steps += idle;
             stats += st;
             for (a, c) in chain_stats.counts.iter_mut().zip(counts) {
                 a.proposed += c.proposed;

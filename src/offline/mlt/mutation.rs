@@ -68,6 +68,22 @@ pub trait Mutation: Sync {
     /// does not apply to `x` or its sample failed (a miss, an occluded connection, zero f): the
     /// chain then keeps `x`, as for a rejection.
     fn propose(&self, cx: &Context, x: &State, rng: &mut Pcg32, stats: &mut RayStats) -> Option<Proposal>;
+    /// Whether the mutation can propose from `x`. For a perturbation (every type but the
+    /// bidirectional mutation) this depends only on the path's length and which of its vertices
+    /// are specular, which its proposals keep: so the share a perturbation gets among those that
+    /// apply ([`super::MltSettings::choose`]) is the same at x̄ and at every ȳ it proposes, and
+    /// each type keeps detailed balance on its own.
+    fn applies(&self, x: &State) -> bool;
+}
+
+/// The first non-specular vertex of `path` seen from the lens (0 when every vertex between is
+/// specular).
+pub fn first_diffuse_from_lens(path: &[PathVertex]) -> usize {
+    let mut a = path.len() - 2;
+    while a > 0 && path[a].is_specular() {
+        a -= 1;
+    }
+    a
 }
 
 /// The bidirectional mutation: delete the sub-path x_{l+1} … x_{m−1} (kd vertices), add ka new
@@ -194,6 +210,10 @@ impl Bidirectional {
 impl Mutation for Bidirectional {
     fn name(&self) -> &'static str {
         "bidir"
+    }
+
+    fn applies(&self, _: &State) -> bool {
+        true
     }
 
     fn propose(&self, cx: &Context, x: &State, rng: &mut Pcg32, stats: &mut RayStats) -> Option<Proposal> {

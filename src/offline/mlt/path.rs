@@ -245,14 +245,24 @@ pub fn reflects(v: &PathVertex, wo: Vec3, wi: Vec3) -> bool {
 }
 
 /// How the perturbations evaluate a path: specular events forced (no lobe probability divided
-/// out), and optionally one light-side vertex whose outgoing direction was perturbed (its
-/// direction density, symmetric, is left out).
+/// out), and optionally one light-side vertex and any camera-side vertices whose outgoing
+/// direction was perturbed (their direction density, symmetric, is left out).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Forced {
     /// Specular events follow the old path.
     pub specular: bool,
-    /// The light-side vertex whose direction was perturbed.
+    /// The light-side vertex whose direction was perturbed (towards the lens).
     pub perturbed: Option<usize>,
+    /// Bit i: the camera-side vertex y_i's direction towards the light was perturbed (i < 128).
+    pub perturbed_eye: u128,
+}
+
+impl Forced {
+    /// Whether y_i's direction towards the light was perturbed.
+    #[inline]
+    pub fn eye_perturbed(&self, i: usize) -> bool {
+        i < 128 && self.perturbed_eye >> i & 1 == 1
+    }
 }
 
 /// `C*_{s,t}` of every strategy of a path, and where it lands on the image.
@@ -334,8 +344,16 @@ fn light_factor(
 
 /// The camera sub-path's factor at a vertex `v` leaving along `wi` towards the light end
 /// (radiance transport): the lens's `We·cos/p` when `wo` is `None` (v is the lens), else the
-/// BSDF's `f·|cos|/p`.
-fn eye_factor(scene: &Scene, v: &PathVertex, wo: Option<Vec3>, wi: Vec3, forced_spec: bool) -> Option<DVec3> {
+/// BSDF's `f·|cos|/p`. `unit_pdf`: the direction density is left out (a perturbed direction,
+/// [`Forced::perturbed_eye`]).
+fn eye_factor(
+    scene: &Scene,
+    v: &PathVertex,
+    wo: Option<Vec3>,
+    wi: Vec3,
+    forced_spec: bool,
+    unit_pdf: bool,
+) -> Option<DVec3> {
     let cam = &scene.camera;
     let Some(wo) = wo else {
         let we = cam.we(v.p(), wi);
@@ -349,7 +367,7 @@ fn eye_factor(scene: &Scene, v: &PathVertex, wo: Option<Vec3>, wi: Vec3, forced_
     if bsdf.is_delta() {
         return specular_weight(&bsdf, wo, wi, TransportMode::Radiance, forced_spec).map(|x| x.as_dvec3());
     }
-    let pdf = bsdf.pdf_w(wo, wi);
+    let pdf = if unit_pdf { 1.0 } else { bsdf.pdf_w(wo, wi) };
     if !(pdf > 0.0) {
         return None;
     }
@@ -417,7 +435,7 @@ pub fn evaluate(scene: &Scene, path: &[PathVertex], forced: Forced) -> Evaluatio
     let f = forced.specular;
     let light =
         |i: usize| light_factor(scene, &path[i], (i > 0).then(|| -w[i - 1]), w[i], f, forced.perturbed == Some(i));
-    let eye = |i: usize| eye_factor(scene, &path[i], (i < k - 1).then(|| w[i]), -w[i - 1], f);
+    let eye = |i: usize| eye_factor(scene, &path[i], (i < k - 1).then(|| w[i]), -w[i - 1], f, forced.eye_perturbed(i));
     let link = |s: usize| {
         let a = (&path[s - 1], (s > 1).then(|| -w[s - 2]));
         let b = (&path[s], (s < k - 1).then(|| w[s]));
@@ -565,7 +583,7 @@ impl<'a> WalkPair<'a> {
             let wo = if i == 0 { None } else { Some(-dir_l(i - 1).expect("checked at i − 1")) };
             pair.l_light[i] = light_factor(scene, &light[i], wo, wi, false, false);
             if let Some(wo) = wo {
-                pair.l_eye[i] = eye_factor(scene, &light[i], Some(wi), wo, false);
+                pair.l_eye[i] = eye_factor(scene, &light[i], Some(wi), wo, false, false);
                 let (_, d2) = wl[i - 1].expect("checked at i − 1");
                 let a_wo = if i == 1 { None } else { Some(-dir_l(i - 2).expect("checked")) };
                 pair.l_link[i] = connection(scene, (&light[i - 1], a_wo), (&light[i], Some(wi)), -wo, d2);
@@ -578,7 +596,7 @@ impl<'a> WalkPair<'a> {
             if m > 0 && towards_lens.is_none() {
                 continue;
             }
-            pair.e_eye[m] = eye_factor(scene, &eye[m], towards_lens, back, false);
+            pair.e_eye[m] = eye_factor(scene, &eye[m], towards_lens, back, false, false);
             if let Some(wl_) = towards_lens {
                 pair.e_light[m] = light_factor(scene, &eye[m], Some(back), wl_, false, false);
                 let (_, d2) = we[m].expect("checked");
@@ -719,7 +737,7 @@ impl<'a> WalkPair<'a> {
             } else if i + 1 < s {
                 self.l_eye[i]
             } else {
-                eye_factor(scene, y(i), (i < k - 1).then(|| w(i)), -w(i - 1), false)
+                eye_factor(scene, y(i), (i < k - 1).then(|| w(i)), -w(i - 1), false, false)
             }
         };
         let link = |j: usize| -> Option<DVec3> {

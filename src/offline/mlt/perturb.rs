@@ -18,7 +18,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::mutation::{Context, Mutation, Proposal, State};
+use super::mutation::{Context, Mutation, Proposal, State, first_diffuse_from_lens};
 use super::path::{Forced, Node, PathVertex, evaluate, reflects, trace, visible};
 use crate::bsdf::{Bsdf, BsdfKind, Frame, dielectric, mirror};
 use crate::sampling::Pcg32;
@@ -27,6 +27,17 @@ use crate::stats::RayStats;
 /// A log-uniform radius in [r1, r2] (Cline & Egbert Appendix B/C).
 fn log_uniform(r1: f32, r2: f32, u: f32) -> f32 {
     r2 * (-(r2 / r1).ln() * u).exp()
+}
+
+/// `w` turned by an angle between θ₁ = 10⁻⁴ and θ₂ = 0.1 radian, log-uniform, about a uniform
+/// axis (Cline & Egbert Appendix C): a density in solid angle that depends only on the angle
+/// between old and new, so the same from either side.
+fn turn(w: Vec3, rng: &mut Pcg32) -> Vec3 {
+    let (u1, u2) = (rng.next_f32(), rng.next_f32());
+    let theta = log_uniform(1e-4, 0.1, u1);
+    let phi = std::f32::consts::TAU * u2;
+    let local = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+    Frame::from_normal(w).to_world(local).normalize()
 }
 
 /// The direction leaving specular vertex `v` when it was entered from `wo` (pointing away from
@@ -96,19 +107,22 @@ impl Mutation for LensPerturbation {
         "lens"
     }
 
+    /// Paths … (L|D) D S* E.
+    fn applies(&self, x: &State) -> bool {
+        let a = first_diffuse_from_lens(&x.path);
+        !(x.path[a].is_specular() || (a >= 2 && x.path[a - 1].is_specular()))
+    }
+
     fn propose(&self, cx: &Context, x: &State, rng: &mut Pcg32, stats: &mut RayStats) -> Option<Proposal> {
         let scene = cx.scene;
         let cam = &scene.camera;
         let xp = &x.path;
         let k = xp.len();
-        // a: the first non-specular vertex seen from the lens; the light side keeps 0 … a − 1.
-        let mut a = k - 2;
-        while a > 0 && xp[a].is_specular() {
-            a -= 1;
-        }
-        if xp[a].is_specular() || (a >= 2 && xp[a - 1].is_specular()) {
+        if !self.applies(x) {
             return None;
         }
+        // a: the first non-specular vertex seen from the lens; the light side keeps 0 … a − 1.
+        let a = first_diffuse_from_lens(xp);
         let (u1, u2) = (rng.next_f32(), rng.next_f32());
         let r = log_uniform(0.1, 0.1 * cam.width as f32, u1);
         let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
@@ -131,7 +145,7 @@ impl Mutation for LensPerturbation {
         } else if !visible(scene, cx.accel, &path[a - 1], &path[a], stats) {
             return None;
         }
-        let forced = Forced { specular: true, perturbed: None };
+        let forced = Forced { specular: true, ..Default::default() };
         let new_l = evaluate(scene, &path, forced).lum(a);
         let old_l = evaluate(scene, xp, forced).lum(a);
         let state = State::new(scene, path)?;
@@ -143,33 +157,42 @@ impl Mutation for LensPerturbation {
 /// The caustic perturbation.
 pub struct CausticPerturbation;
 
+/// The vertex x_j of a path … x_j (L|D) S+ x_{k−2} (D) E whose direction the caustic
+/// perturbation turns.
+fn caustic_start(xp: &[PathVertex]) -> Option<usize> {
+    let k = xp.len();
+    if k < 4 || xp[k - 2].is_specular() || !xp[k - 3].is_specular() {
+        return None;
+    }
+    let mut j = k - 3;
+    while j > 0 && xp[j].is_specular() {
+        j -= 1;
+    }
+    (!xp[j].is_specular()).then_some(j)
+}
+
+/// Whether a path is … (L|D) D S+ x_a (D) S* E with x_a the first non-specular vertex from
+/// the lens (a ≥ 2), at most 128 vertices long: the multi-chain perturbation's paths.
+fn multi_chain_start(xp: &[PathVertex]) -> Option<usize> {
+    let a = first_diffuse_from_lens(xp);
+    (a >= 2 && !xp[a].is_specular() && xp[a - 1].is_specular() && xp.len() <= 128).then_some(a)
+}
+
 impl Mutation for CausticPerturbation {
     fn name(&self) -> &'static str {
         "caustic"
+    }
+
+    fn applies(&self, x: &State) -> bool {
+        caustic_start(&x.path).is_some()
     }
 
     fn propose(&self, cx: &Context, x: &State, rng: &mut Pcg32, stats: &mut RayStats) -> Option<Proposal> {
         let scene = cx.scene;
         let xp = &x.path;
         let k = xp.len();
-        // … x_j (L|D) S+ x_{k−2} (D) E.
-        if k < 4 || xp[k - 2].is_specular() || !xp[k - 3].is_specular() {
-            return None;
-        }
-        let mut j = k - 3;
-        while j > 0 && xp[j].is_specular() {
-            j -= 1;
-        }
-        if xp[j].is_specular() {
-            return None;
-        }
-        let w = (xp[j + 1].p() - xp[j].p()).normalize();
-        let (u1, u2) = (rng.next_f32(), rng.next_f32());
-        let theta = log_uniform(1e-4, 0.1, u1);
-        let phi = std::f32::consts::TAU * u2;
-        let frame = Frame::from_normal(w);
-        let local = Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
-        let dir = frame.to_world(local).normalize();
+        let j = caustic_start(xp)?;
+        let dir = turn((xp[j + 1].p() - xp[j].p()).normalize(), rng);
         let mut new = Vec::with_capacity(k - j);
         retrace(cx, xp, &xp[j], dir, (j, k - 2, 1), &mut new, stats)?;
         let mut path: Vec<PathVertex> = xp[..=j].to_vec();
@@ -178,9 +201,80 @@ impl Mutation for CausticPerturbation {
         if !visible(scene, cx.accel, &path[k - 2], &path[k - 1], stats) {
             return None;
         }
-        let forced = Forced { specular: true, perturbed: Some(j) };
+        let forced = Forced { specular: true, perturbed: Some(j), ..Default::default() };
         let new_l = evaluate(scene, &path, forced).lum(k - 1);
         let old_l = evaluate(scene, xp, forced).lum(k - 1);
+        let state = State::new(scene, path)?;
+        let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
+        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+    }
+}
+
+/// The multi-chain perturbation.
+pub struct MultiChainPerturbation;
+
+impl Mutation for MultiChainPerturbation {
+    fn name(&self) -> &'static str {
+        "multichain"
+    }
+
+    fn applies(&self, x: &State) -> bool {
+        multi_chain_start(&x.path).is_some()
+    }
+
+    fn propose(&self, cx: &Context, x: &State, rng: &mut Pcg32, stats: &mut RayStats) -> Option<Proposal> {
+        let scene = cx.scene;
+        let cam = &scene.camera;
+        let xp = &x.path;
+        let k = xp.len();
+        // … (L|D) D S+ x_a (D) S* E: a, the first non-specular vertex seen from the lens, sees a
+        // specular chain towards the light (else the lens perturbation covers the path).
+        let a = multi_chain_start(xp)?;
+        let (u1, u2) = (rng.next_f32(), rng.next_f32());
+        let r = log_uniform(0.1, 0.1 * cam.width as f32, u1);
+        let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
+        let raster = x.raster() + Vec2::new(r * cos, r * sin);
+        if !(raster.x >= 0.0 && raster.y >= 0.0 && raster.x < cam.width as f32 && raster.y < cam.height as f32) {
+            return None;
+        }
+        let lens = xp[k - 1];
+        // The new vertices from y_{k−2} down, in that order.
+        let mut new = Vec::with_capacity(k - 1);
+        retrace(cx, xp, &lens, cam.ray_from_lens(lens.p(), raster).dir, (k - 1, a, -1), &mut new, stats)?;
+        let mut forced = Forced { specular: true, ..Default::default() };
+        // Each non-specular vertex c that sees a specular chain towards the light: turn the old
+        // direction, follow the chain's events to the next non-specular vertex b, and stop once
+        // b can be joined to the old x_{b−1} (or is the light).
+        let mut c = a;
+        let s = loop {
+            forced.perturbed_eye |= 1u128 << c;
+            let mut b = c - 1;
+            while b > 0 && xp[b].is_specular() {
+                b -= 1;
+            }
+            if xp[b].is_specular() {
+                return None;
+            }
+            let from = *new.last().expect("the chain so far");
+            let dir = turn((xp[c - 1].p() - xp[c].p()).normalize(), rng);
+            retrace(cx, xp, &from, dir, (c, b, -1), &mut new, stats)?;
+            if b == 0 || !xp[b - 1].is_specular() {
+                break b;
+            }
+            c = b;
+        };
+        let mut path: Vec<PathVertex> = xp[..s].to_vec();
+        path.extend(new.iter().rev());
+        path.push(lens);
+        if s == 0 {
+            if path[0].light == crate::scene::NO_LIGHT || path[0].node != Node::Surface {
+                return None;
+            }
+        } else if !visible(scene, cx.accel, &path[s - 1], &path[s], stats) {
+            return None;
+        }
+        let new_l = evaluate(scene, &path, forced).lum(s);
+        let old_l = evaluate(scene, xp, forced).lum(s);
         let state = State::new(scene, path)?;
         let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
         Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
