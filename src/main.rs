@@ -279,12 +279,17 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
     if let Some(m) = pssmlt {
         let (large, small) = m.rejected();
         out!(
-            "  {} chains ({} accepted nothing), b = {:.4e} from {} bootstrap paths ({} non-zero); rejected: large steps {:.1} %, small steps {:.1} %",
+            "  {} chains ({} accepted nothing), b = {:.4e} from {} bootstrap paths ({} non-zero){}; rejected: large steps {:.1} %, small steps {:.1} %",
             options.pssmlt.chains,
             m.stuck_chains,
             m.b,
             options.pssmlt.bootstrap,
             m.bootstrap_nonzero,
+            if options.pssmlt.direct > 0 {
+                format!(", depths 2 and up; depths 0–1 path traced at {} spp a pass", options.pssmlt.direct)
+            } else {
+                String::new()
+            },
             100.0 * large,
             100.0 * small
         );

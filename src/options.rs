@@ -292,12 +292,15 @@ pub struct RenderArgs {
     /// that apply to the path share the rest.
     #[arg(long, default_value = "bidir,lens,caustic,multichain")]
     pub mutations: String,
-    /// mlt: path-traced samples per pixel and pass for the direct part (lights and directly lit
+    /// mlt, pssmlt: path-traced samples per pixel and pass for the direct part, which the
+    /// chains then leave to it, so that they spend their mutations on indirect light and
+    /// caustics; 0: the chains take every path. mlt's direct part: lights and directly lit
     /// surfaces, seen directly or through mirrors and glass, and paths no connection can make,
-    /// which no mutation could move), which the chains then leave to it, so that they spend
-    /// their mutations on indirect light and caustics; 0: the chains take every path.
-    #[arg(long, default_value_t = crate::offline::mlt::MltSettings::default().direct)]
-    pub mlt_direct: u32,
+    /// which no mutation could move; pssmlt's: the paths of depth 0 and 1 (lights seen directly
+    /// and direct lighting). Default: 1 for mlt, 0 for pssmlt (whose split helps the glass
+    /// sphere 2.7× and costs the thick-walled slit 1.8×: benches/results/2026-12-07-pssmlt-direct.md).
+    #[arg(long)]
+    pub mlt_direct: Option<u32>,
     /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().chains)]
     pub mlt_chains: usize,
@@ -444,13 +447,14 @@ impl RenderArgs {
             bootstrap: self.bootstrap,
             large_step: self.large_step,
             sigma: self.sigma,
+            direct: self.mlt_direct.unwrap_or(crate::offline::pssmlt::PssmltSettings::default().direct),
         };
         pssmlt.validate().map_err(OptionsError)?;
         let mlt = crate::offline::mlt::MltSettings {
             chains: self.mlt_chains,
             bootstrap: self.bootstrap,
             mutations: crate::offline::mlt::MutationKind::parse_list(&self.mutations).map_err(OptionsError)?,
-            direct: self.mlt_direct,
+            direct: self.mlt_direct.unwrap_or(crate::offline::mlt::MltSettings::default().direct),
         };
         let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,
