@@ -288,10 +288,15 @@ pub struct RenderArgs {
     /// direction at each diffuse vertex before a specular chain), subpath (lens sub-path: a new
     /// camera ray from a rover that stratifies the chains over the pixels, the same specular
     /// bounces, joined to the kept light end; off by default: at its share it cost accuracy on
-    /// every scene measured). The bidirectional mutation takes half the proposals, the others
+    /// every scene measured). The bidirectional mutation takes --bidir-share of the proposals, the others
     /// that apply to the path share the rest.
     #[arg(long, default_value = "bidir,lens,caustic,multichain")]
     pub mutations: String,
+    /// mlt: probability of the bidirectional mutation (the other types in use that apply to the
+    /// path share the rest). More helps where the light comes through holes (the perturbations
+    /// fail there), less where lens perturbations can follow it (a slit).
+    #[arg(long, default_value_t = crate::offline::mlt::MltSettings::default().bidir_share)]
+    pub bidir_share: f64,
     /// mlt, pssmlt: path-traced samples per pixel and pass for the direct part, which the
     /// chains then leave to it, so that they spend their mutations on indirect light and
     /// caustics; 0: the chains take every path. mlt's direct part: lights and directly lit
@@ -450,11 +455,15 @@ impl RenderArgs {
             direct: self.mlt_direct.unwrap_or(crate::offline::pssmlt::PssmltSettings::default().direct),
         };
         pssmlt.validate().map_err(OptionsError)?;
+        if !(self.bidir_share > 0.0 && self.bidir_share <= 1.0) {
+            return Err(OptionsError(format!("--bidir-share {} must be in (0, 1]", self.bidir_share)));
+        }
         let mlt = crate::offline::mlt::MltSettings {
             chains: self.mlt_chains,
             bootstrap: self.bootstrap,
             mutations: crate::offline::mlt::MutationKind::parse_list(&self.mutations).map_err(OptionsError)?,
             direct: self.mlt_direct.unwrap_or(crate::offline::mlt::MltSettings::default().direct),
+            bidir_share: self.bidir_share,
         };
         let filter = match self.pixel_filter {
             FilterArg::Box => FilterKind::Box,

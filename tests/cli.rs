@@ -208,6 +208,8 @@ fn absurd_parameters_are_rejected_with_the_flag_named() {
         (vec!["render", "--mode", "pssmlt", "--sigma", "NaN"], "--sigma"),
         (vec!["render", "--mode", "mlt", "--mutations", "lens,warp"], "--mutations"),
         (vec!["render", "--mode", "mlt", "--mutations", ","], "--mutations"),
+        (vec!["render", "--mode", "mlt", "--bidir-share", "1.5"], "--bidir-share"),
+        (vec!["render", "--mode", "mlt", "--bidir-share", "NaN"], "--bidir-share"),
         (vec!["render", "--fov-y", "200"], "field of view"),
         (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "coincide"),
         (vec!["render", "--tonemap", "reinhard", "--exposure", "1"], "--exposure"),

@@ -143,7 +143,7 @@ fn each_mutation_type_alone_gives_pts_image() {
             .map(|seed| offline::render_pt(&s, &a, &settings(200 + seed, 128), &NoProgress).film.image())
             .collect();
         let pt = Estimate::from_batches(&pt);
-        let m = MltSettings { chains: 256, bootstrap: 20_000, mutations: vec![kind], direct: 0 };
+        let m = MltSettings { chains: 256, bootstrap: 20_000, mutations: vec![kind], direct: 0, ..Default::default() };
         let images: Vec<Image> = (0..8)
             .map(|seed| {
                 let (img, st) = mlt(&s, &a, seed, spp, &m);

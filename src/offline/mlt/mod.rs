@@ -3,9 +3,9 @@
 //!
 //! The chains walk over complete paths ȳ = y_0 … y_{k−1} ([`path`]), with target f_lum(ȳ), the
 //! luminance of the measurement contribution, and the mutations of [`mutation`], [`perturb`]
-//! and [`subpath`]: the bidirectional mutation (half of the proposals when others are on), and
-//! the lens, caustic and multi-chain perturbations and the lens sub-path mutation with its
-//! rover (the other half, shared equally among those that apply to the current path:
+//! and [`subpath`]: the bidirectional mutation (`--bidir-share`, ⅔ of the proposals when
+//! others are on), and the lens, caustic and multi-chain perturbations and the lens sub-path
+//! mutation with its rover (the rest, shared equally among those that apply to the path:
 //! [`MltSettings::choose`]). The bidirectional mutation's probability does not depend on the
 //! state, and each other type's share depends only on the path's length and which vertices are
 //! specular, which its proposals keep, so each type keeps detailed balance on its own
@@ -168,6 +168,10 @@ pub struct MltSettings {
     /// and directly lit surfaces, seen directly or through specular surfaces, and the paths no
     /// connection can make), which the chains then leave out; 0: the chains take every path.
     pub direct: u32,
+    /// Probability of the bidirectional mutation when other types are in use too (⅔: at 16 s,
+    /// 3 seeds, it beat ½ and 0.8 on the slit and the box with holes, and tied on the glass
+    /// sphere; benches/results/2026-12-07-mlt-mutations.md).
+    pub bidir_share: f64,
 }
 
 /// Whether a path of `k` vertices y_0 (light) … y_{k−1} (lens) is in the direct part, whose
@@ -193,7 +197,13 @@ pub fn in_direct_part(k: usize, specular: impl Fn(usize) -> bool) -> bool {
 
 impl Default for MltSettings {
     fn default() -> Self {
-        MltSettings { chains: 1000, bootstrap: 100_000, mutations: MutationKind::DEFAULT.to_vec(), direct: 1 }
+        MltSettings {
+            chains: 1000,
+            bootstrap: 100_000,
+            mutations: MutationKind::DEFAULT.to_vec(),
+            direct: 1,
+            bidir_share: 2.0 / 3.0,
+        }
     }
 }
 
@@ -206,7 +216,8 @@ impl MltSettings {
     }
 
     /// The type of the next proposal from `x`, for a uniform `u` ∈ [0, 1): the bidirectional
-    /// mutation with probability ½ (1 when it is the only type in use, whatever x is), the
+    /// mutation with probability `bidir_share` (1 when it is the only type in use, whatever x
+    /// is), the
     /// perturbations in use that apply to x ([`Mutation::applies`]) the rest in equal shares;
     /// `None` when none of them applies (the state stays for that step). A perturbation's share
     /// depends only on what its proposals keep (length, specular vertices), so it is the same at
@@ -217,7 +228,7 @@ impl MltSettings {
         let p_bidir = match (bidir, perturbations().next().is_some()) {
             (false, _) => 0.0,
             (true, false) => return Some(MutationKind::Bidir),
-            (true, true) => 0.5,
+            (true, true) => self.bidir_share,
         };
         if u < p_bidir {
             return Some(MutationKind::Bidir);
