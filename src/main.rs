@@ -285,10 +285,14 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             m.b,
             options.pssmlt.bootstrap,
             m.bootstrap_nonzero,
-            if options.pssmlt.direct > 0 {
-                format!(", depths 2 and up; depths 0–1 path traced at {} spp a pass", options.pssmlt.direct)
+            if m.direct > 0 {
+                format!(
+                    ", depths 2 and up; depths 0–1 ({:.0} % of the light) path traced at {} spp a pass",
+                    100.0 * m.direct_share,
+                    m.direct
+                )
             } else {
-                String::new()
+                ", every depth".to_string()
             },
             100.0 * large,
             100.0 * small

@@ -302,8 +302,9 @@ pub struct RenderArgs {
     /// caustics; 0: the chains take every path. mlt's direct part: lights and directly lit
     /// surfaces, seen directly or through mirrors and glass, and paths no connection can make,
     /// which no mutation could move; pssmlt's: the paths of depth 0 and 1 (lights seen directly
-    /// and direct lighting). Default: 1 for mlt, 0 for pssmlt (whose split helps the glass
-    /// sphere 2.7× and costs the thick-walled slit 1.8×: benches/results/2026-12-07-pssmlt-direct.md).
+    /// and direct lighting). Default: 1 for mlt; for pssmlt 1 when a quick path-traced estimate
+    /// puts at least a fifth of the light in depths 0–1, else 0 (the split cuts the Cornell box's error
+    /// 45× and raises the thick-walled slit's 1.8×: benches/results/2026-12-07-pssmlt-direct.md).
     #[arg(long)]
     pub mlt_direct: Option<u32>,
     /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).
@@ -452,7 +453,7 @@ impl RenderArgs {
             bootstrap: self.bootstrap,
             large_step: self.large_step,
             sigma: self.sigma,
-            direct: self.mlt_direct.unwrap_or(crate::offline::pssmlt::PssmltSettings::default().direct),
+            direct: self.mlt_direct,
         };
         pssmlt.validate().map_err(OptionsError)?;
         if !(self.bidir_share > 0.0 && self.bidir_share <= 1.0) {

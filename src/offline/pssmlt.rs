@@ -22,14 +22,16 @@
 //! weighted sample of I, and Metropolis–Hastings steps keep it so). The image is
 //! `b / spp · Σ_k f(x_k) / I(x_k)` over all chains' states.
 //!
-//! **Direct part** (`--mlt-direct N`, off by default here, as `--mode mlt`'s split): the paths of depth 0
+//! **Direct part** (`--mlt-direct N`, as `--mode mlt`'s split; by default on when a quick
+//! path-traced estimate puts at least [`AUTO_DIRECT_SHARE`] of the light there): the paths of depth 0
 //! and 1 — a light seen directly, direct lighting — are path traced (pt restricted to one or two
 //! segments, its MIS between light sampling and BSDF sampling unchanged), N samples a pixel
 //! each pass, averaged as pixel samples under the chains' splats; the chains, the bootstrap and
 //! b take the depths from 2 up. The image is the sum of two unbiased estimates of disjoint parts
-//! of the measurement. Off by default (every depth to the chains): on the glass sphere it cuts
-//! the error 2.7×, on the thick-walled slit, where depths 0–1 hold 1 % of the light, it raised
-//! the error 1.8× over seven seeds (benches/results/2026-12-07-pssmlt-direct.md).
+//! of the measurement. It cuts the error where depths 0–1 hold much of the light (Cornell box
+//! 45×, glass sphere 2.7×) and raises it where they hold little (thick-walled slit, 1 %: 1.8×,
+//! the pass's time lost to the chains), hence the default by share
+//! (benches/results/2026-12-07-pssmlt-direct.md).
 //!
 //! **Mutations**: with probability `large_step` every number is drawn anew (an independent
 //! proposal), otherwise each is moved by a normal step of deviation `sigma` per iteration since
@@ -63,6 +65,7 @@ const TAG_BOOTSTRAP: u64 = 0x5053_4d4c_5442;
 const TAG_PILOT: u64 = 0x5053_4d4c_5450;
 const TAG_START: u64 = 0x5053_4d4c_5453;
 const TAG_CHAIN: u64 = 0x5053_4d4c_5443;
+const TAG_SHARE: u64 = 0x5053_4d4c_5348;
 
 /// Streams of the primary sample vector: camera sub-path, light sub-path, connection.
 const STREAMS: usize = 3;
@@ -83,16 +86,24 @@ pub struct PssmltSettings {
     pub sigma: f32,
     /// Path-traced samples per pixel and pass for the paths of depth 0 and 1 (lights seen
     /// directly and direct lighting), which the chains then leave out; 0: the chains take every
-    /// depth.
-    pub direct: u32,
+    /// depth; `None`: 1 when a quick path-traced estimate finds at least [`AUTO_DIRECT_SHARE`]
+    /// of the light there, else 0.
+    pub direct: Option<u32>,
 }
+
+/// The share of the light in depths 0–1 from which the direct part is path traced by default.
+/// Measured (5.33 s, 256×192, excess nMSE, benches/results/2026-12-07-pssmlt-direct.md): the
+/// split cuts the error 45× on the Cornell box (77 % of its light there), 2.7× on the glass
+/// sphere (73 %), a little on the box with holes (30 %), and raises it 1.8× on the thick-walled
+/// slit (1.1 %), whose chains lose a fifth of their time to it.
+pub const AUTO_DIRECT_SHARE: f64 = 0.2;
 
 /// The first path depth the chains take when the direct part is path traced.
 pub const FIRST_CHAIN_DEPTH: usize = 2;
 
 impl Default for PssmltSettings {
     fn default() -> Self {
-        PssmltSettings { chains: 1000, bootstrap: 100_000, large_step: 0.3, sigma: 0.01, direct: 0 }
+        PssmltSettings { chains: 1000, bootstrap: 100_000, large_step: 0.3, sigma: 0.01, direct: None }
     }
 }
 
@@ -129,6 +140,11 @@ pub struct PssmltStats {
     /// Chains that accepted none of their proposals (at least 32 of them): stuck on a state far
     /// brighter than its neighbours, the bright dots MLT renderers are known for.
     pub stuck_chains: u64,
+    /// Path-traced samples a pixel and pass of depths 0–1 (0: the chains took every depth).
+    pub direct: u32,
+    /// The share of the light in depths 0–1 that chose the split (0 when `--mlt-direct` was
+    /// given).
+    pub direct_share: f64,
 }
 
 impl PssmltStats {
@@ -375,40 +391,97 @@ fn target(v: Vec3) -> f64 {
     if l > 0.0 && l.is_finite() { l } else { 0.0 }
 }
 
-/// How many bootstrap states each depth gets, `n` in all: half in proportion to a pilot
-/// estimate of each depth's standard deviation (Neyman's allocation, which minimises the variance
-/// of b for a given n; the pilot is `n / 4` states with uniformly spread depths and Russian
-/// roulette, cheap), half ∝ 1/(d + 1), so that a depth the pilot missed still gets its share;
-/// at least one per depth. The allocation changes only the variance of b: each state is weighted
-/// by n_total / n_d.
-///
-/// Depths below `first` (the direct part, path traced) get none.
-fn depth_counts(
+/// Per depth: the sum, the sum of squares and the count of the target over a pilot of `n / 4`
+/// states with uniformly spread depths and Russian roulette (cheap).
+fn pilot(
     scene: &Scene,
     accel: &Accel,
     seed: u64,
     n: usize,
-    (first, depths): (usize, usize),
+    depths: usize,
     pss: &PssmltSettings,
-) -> Vec<usize> {
-    if first >= depths {
-        return vec![0; depths];
-    }
+) -> Vec<(f64, f64, u64)> {
     let pilot_n = (n / 4).max(depths) as u64;
-    let pilot: Vec<(usize, f64)> = (0..pilot_n)
+    let values: Vec<(usize, f64)> = (0..pilot_n)
         .into_par_iter()
         .map_init(Paths::default, |paths, i| {
             let mut st = RayStats::default();
             let mut sampler = MltSampler::new(Pcg32::from_words(&[seed, TAG_PILOT, i]), pss.sigma, pss.large_step);
-            let d = first + i as usize % (depths - first);
+            let d = i as usize % depths;
             (d, target(evaluate(scene, accel, &mut sampler, d, true, paths, &mut st).value))
         })
         .collect();
     let mut moments = vec![(0.0f64, 0.0f64, 0u64); depths];
-    for (d, w) in pilot {
+    for (d, w) in values {
         moments[d].0 += w;
         moments[d].1 += w * w;
         moments[d].2 += 1;
+    }
+    moments
+}
+
+/// The share of the image's light in the depths below [`FIRST_CHAIN_DEPTH`], estimated by a
+/// path tracer on one pixel in four (a full path and a depth-0–1 path from each, on streams of
+/// their own), so that the choice of the split is independent of the bootstrap and the chains
+/// (each estimator stays unbiased whichever way it goes). 0 when it found no light.
+fn direct_share(scene: &Scene, accel: &Accel, seed: u64, max_depth: u32, stats: &mut RayStats) -> f64 {
+    let cam = &scene.camera;
+    let pixels = cam.pixel_count() as u64;
+    let only_direct = super::pt::PathFilter { edges: Some((1, FIRST_CHAIN_DEPTH as u32)), ..Default::default() };
+    let direct_depth = max_depth.min(FIRST_CHAIN_DEPTH as u32 - 1);
+    let (direct, total, st) = (0..pixels.div_ceil(4))
+        .into_par_iter()
+        .map(|i| {
+            let mut st = RayStats::default();
+            let mut sampler = crate::sampling::IndependentSampler::for_stream(seed, TAG_SHARE, i);
+            let p = (4 * i + sampler.rng().next_below(4) as u64).min(pixels - 1);
+            let mut ray = || {
+                let raster =
+                    Vec2::new((p % cam.width as u64) as f32, (p / cam.width as u64) as f32) + sampler.next_2d();
+                (raster, sampler.next_2d())
+            };
+            let (r1, l1) = ray();
+            let (r2, l2) = ray();
+            let full = super::pt::radiance_of_length(
+                scene,
+                accel,
+                cam.generate_ray(r1, l1),
+                &mut sampler,
+                max_depth,
+                &Default::default(),
+                &mut st,
+            );
+            let part = super::pt::radiance_of_length(
+                scene,
+                accel,
+                cam.generate_ray(r2, l2),
+                &mut sampler,
+                direct_depth,
+                &only_direct,
+                &mut st,
+            );
+            (target(part.0), target(full.0), st)
+        })
+        .reduce(
+            || (0.0, 0.0, RayStats::default()),
+            |mut a, b| {
+                a.2 += b.2;
+                (a.0 + b.0, a.1 + b.1, a.2)
+            },
+        );
+    *stats += st;
+    if total > 0.0 { (direct / total).min(1.0) } else { 0.0 }
+}
+
+/// How many bootstrap states each depth gets, `n` in all: half in proportion to the pilot's
+/// estimate of each depth's standard deviation (Neyman's allocation, which minimises the variance
+/// of b for a given n), half ∝ 1/(d + 1), so that a depth the pilot missed still gets its share;
+/// at least one per depth. The allocation changes only the variance of b: each state is weighted
+/// by n_total / n_d. Depths below `first` (the direct part, path traced) get none.
+fn depth_counts(moments: &[(f64, f64, u64)], n: usize, first: usize) -> Vec<usize> {
+    let depths = moments.len();
+    if first >= depths {
+        return vec![0; depths];
     }
     let sigma: Vec<f64> = moments
         .iter()
@@ -417,7 +490,7 @@ fn depth_counts(
             (s2 / k - (s1 / k).powi(2)).max(0.0).sqrt()
         })
         .collect();
-    let sigma_total: f64 = sigma.iter().sum();
+    let sigma_total: f64 = sigma[first..].iter().sum();
     let harmonic: f64 = (first..depths).map(|d| 1.0 / (d + 1) as f64).sum();
     (0..depths)
         .map(|d| {
@@ -517,8 +590,12 @@ pub fn render_pssmlt(
     let depths = settings.max_depth as usize + 1;
 
     // Bootstrap: b and the states chains start from; state i has depth depth_of[i].
-    let first_depth = if pss.direct > 0 { FIRST_CHAIN_DEPTH } else { 0 };
-    let counts = depth_counts(scene, accel, seed, pss.bootstrap, (first_depth, depths), pss);
+    let share =
+        if pss.direct.is_none() { direct_share(scene, accel, seed, settings.max_depth, &mut stats) } else { 0.0 };
+    let moments = pilot(scene, accel, seed, pss.bootstrap, depths, pss);
+    let direct = pss.direct.unwrap_or(u32::from(share >= AUTO_DIRECT_SHARE));
+    let first_depth = if direct > 0 { FIRST_CHAIN_DEPTH } else { 0 };
+    let counts = depth_counts(&moments, pss.bootstrap, first_depth);
     let n_boot: usize = counts.iter().sum();
     let strata = {
         let depth_of: Vec<u32> =
@@ -559,7 +636,9 @@ pub fn render_pssmlt(
     let pixels = cam.width as u64 * cam.height as u64;
     // One mutation per pixel per pass.
     let per_pass_spp = 1;
-    if !(b > 0.0) && pss.direct == 0 {
+    chain_stats.direct = direct;
+    chain_stats.direct_share = share;
+    if !(b > 0.0) && direct == 0 {
         // Nothing in the bootstrap reached the camera: the image is black (as pt's would be
         // at that sample count).
         settings.budget.start_progress(progress);
@@ -610,10 +689,9 @@ pub fn render_pssmlt(
         super::pt::radiance_of_length(scene, accel, ray, sampler, direct_depth, &only_direct, st)
     };
     let spp = settings.budget.drive(start, progress, |pass| {
-        if pss.direct > 0 {
-            let first = pass * pss.direct;
-            stats +=
-                super::pixel_pass(scene, &direct_settings, &mut film, &tiles, first..first + pss.direct, &direct_fn);
+        if direct > 0 {
+            let first = pass * direct;
+            stats += super::pixel_pass(scene, &direct_settings, &mut film, &tiles, first..first + direct, &direct_fn);
         }
         let mutations = pixels * per_pass_spp as u64;
         let results: Vec<(Deposits, RayStats, PssmltStats)> = chains
