@@ -288,8 +288,8 @@ pub struct RenderArgs {
     /// direction at each diffuse vertex before a specular chain), subpath (lens sub-path: a new
     /// camera ray from a rover that stratifies the chains over the pixels, the same specular
     /// bounces, joined to the kept light end; off by default: at its share it cost accuracy on
-    /// every scene measured). The bidirectional mutation takes --bidir-share of the proposals, the others
-    /// that apply to the path share the rest.
+    /// the slit and the glass sphere). The bidirectional mutation takes --bidir-share of the
+    /// proposals, the others that apply to the path share the rest.
     #[arg(long, default_value = "bidir,lens,caustic,multichain")]
     pub mutations: String,
     /// mlt: probability of the bidirectional mutation (the other types in use that apply to the
@@ -303,8 +303,9 @@ pub struct RenderArgs {
     /// surfaces, seen directly or through mirrors and glass, and paths no connection can make,
     /// which no mutation could move; pssmlt's: the paths of depth 0 and 1 (lights seen directly
     /// and direct lighting). Default: 1 for mlt; for pssmlt 1 when a quick path-traced estimate
-    /// puts at least a fifth of the light in depths 0–1, else 0 (the split cuts the Cornell box's error
-    /// 45× and raises the thick-walled slit's 1.8×: benches/results/2026-12-07-pssmlt-direct.md).
+    /// puts at least a fifth of the light in depths 0–1, else 0 (the split cuts the Cornell
+    /// box's error 45× and raises the thick-walled slit's 1.8×:
+    /// benches/results/2026-12-07-pssmlt-direct.md).
     #[arg(long)]
     pub mlt_direct: Option<u32>,
     /// pssmlt, mlt: independent Markov chains (the count, not the thread count, fixes the image).

@@ -61,7 +61,8 @@ fn the_furnace_gives_two() {
 /// specular chain) and two thick-walled hard scenes (a slit, a box with small holes), over eight
 /// seeds, for a small and the default bootstrap, and with the direct part path traced
 /// (`--mlt-direct 1`: a depth left out or counted twice shows; its mean is tested by
-/// `the_split_bootstrap_estimates_the_deeper_light_without_bias`): the image mean within |z| < 4 with the standard
+/// `the_split_bootstrap_estimates_the_deeper_light_without_bias`): the image mean within
+/// |z| < 4 with the standard
 /// error from the spread over seeds, and every 8×8 block and channel by the correlation-robust
 /// block test (Welch t over the seeds' block sums, Bonferroni bound). Every deposit carries
 /// luminance b, so the image mean tests b (a biased bootstrap, the brightness that depends on the

@@ -23,8 +23,8 @@
 //! `b / spp · Σ_k f(x_k) / I(x_k)` over all chains' states.
 //!
 //! **Direct part** (`--mlt-direct N`, as `--mode mlt`'s split; by default on when a quick
-//! path-traced estimate puts at least [`AUTO_DIRECT_SHARE`] of the light there): the paths of depth 0
-//! and 1 — a light seen directly, direct lighting — are path traced (pt restricted to one or two
+//! path-traced estimate puts at least [`AUTO_DIRECT_SHARE`] of the light there): the paths of
+//! depth 0 and 1 — a light seen directly, direct lighting — are path traced (pt restricted to one or two
 //! segments, its MIS between light sampling and BSDF sampling unchanged), N samples a pixel
 //! each pass, averaged as pixel samples under the chains' splats; the chains, the bootstrap and
 //! b take the depths from 2 up. The image is the sum of two unbiased estimates of disjoint parts

@@ -111,7 +111,8 @@ impl MutationKind {
     ];
 
     /// The types in use by default (`--mutations`): all but the lens sub-path mutation, which
-    /// at its share cost accuracy on every scene measured (benches/results/2026-12-07-mlt-mutations.md).
+    /// at its share cost accuracy on the slit and the glass sphere and helped the box with holes
+    /// only within the seeds' spread (benches/results/2026-12-07-mlt-mutations.md).
     pub const DEFAULT: [MutationKind; 4] =
         [MutationKind::Bidir, MutationKind::Lens, MutationKind::Caustic, MutationKind::MultiChain];
 
@@ -217,8 +218,8 @@ impl MltSettings {
 
     /// The type of the next proposal from `x`, for a uniform `u` ∈ [0, 1): the bidirectional
     /// mutation with probability `bidir_share` (1 when it is the only type in use, whatever x
-    /// is), the
-    /// perturbations in use that apply to x ([`Mutation::applies`]) the rest in equal shares;
+    /// is), the perturbations in use that apply to x ([`Mutation::applies`]) the rest in equal
+    /// shares;
     /// `None` when none of them applies (the state stays for that step). A perturbation's share
     /// depends only on what its proposals keep (length, specular vertices), so it is the same at
     /// both ends of each of its moves.

@@ -14,8 +14,8 @@
 //! state stays); that probability is part of the same density on both sides.
 //!
 //! **Rover**: the raster positions of the chains' lens sub-path mutations are stratified over
-//! the pixels across the chains (Fischer's rover; Veach uses the mutation "to stratify samples
-//! over the image plane"): chain c's n-th lens sub-path proposal lands in pixel
+//! the pixels across the chains (Fischer's rover; in Veach's set this mutation is the one that
+//! spreads the samples evenly over the image): chain c's n-th lens sub-path proposal lands in pixel
 //! `(o_n + c·g) mod P` (P pixels, g coprime to P near P/φ so that the chains spread over the
 //! image, o_n uniform and independent for each n) at a uniform position inside it. So the n-th
 //! proposals of all the chains fall in distinct pixels spread evenly over the image, while each
