@@ -50,6 +50,25 @@ pub struct Proposal {
     pub accept: f64,
 }
 
+impl Proposal {
+    /// ȳ with `a = min(1, new / old)`: 1 when x̄'s own value is zero (any move away from a state
+    /// the target gives no weight is accepted), 0 when the ratio is not finite.
+    pub fn with_ratio(state: State, new: f64, old: f64) -> Proposal {
+        let accept = if old > 0.0 { (new / old).min(1.0) } else { 1.0 };
+        Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } }
+    }
+}
+
+/// Whether the light side `path[..s]` and the regenerated camera side `path[s..]` of a proposed
+/// path join: y_{s−1} sees y_s, or, when s = 0, the camera side ends on an emitting surface.
+pub fn joins(cx: &Context, path: &[PathVertex], s: usize, stats: &mut RayStats) -> bool {
+    if s == 0 {
+        path[0].light != crate::scene::NO_LIGHT && path[0].node == Node::Surface
+    } else {
+        visible(cx.scene, cx.accel, &path[s - 1], &path[s], stats)
+    }
+}
+
 /// What a proposal needs besides the state.
 pub struct Context<'a> {
     /// The scene.
@@ -276,8 +295,10 @@ impl Mutation for Bidirectional {
         }
         let forward = Self::q(xp, &y_eval, pinhole, l, kd, ka, cx.max_vertices);
         let backward = Self::q(&path, &x.eval, pinhole, l, ka, kd, cx.max_vertices);
-        let accept = if forward > 0.0 { (backward / forward).min(1.0) } else { 0.0 };
         let state = State { path, eval: y_eval };
-        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+        if !(forward > 0.0) {
+            return Some(Proposal { state, accept: 0.0 });
+        }
+        Some(Proposal::with_ratio(state, backward, forward))
     }
 }

@@ -18,15 +18,27 @@
 
 use glam::{Vec2, Vec3};
 
-use super::mutation::{Context, Mutation, Proposal, State, first_diffuse_from_lens};
-use super::path::{Forced, Node, PathVertex, evaluate, reflects, trace, visible};
+use super::mutation::{Context, Mutation, Proposal, State, first_diffuse_from_lens, joins};
+use super::path::{Forced, PathVertex, evaluate, reflects, trace, visible};
 use crate::bsdf::{Bsdf, BsdfKind, Frame, dielectric, mirror};
 use crate::sampling::Pcg32;
+use crate::scene::Camera;
 use crate::stats::RayStats;
 
 /// A log-uniform radius in [r1, r2] (Cline & Egbert Appendix B/C).
 fn log_uniform(r1: f32, r2: f32, u: f32) -> f32 {
     r2 * (-(r2 / r1).ln() * u).exp()
+}
+
+/// `raster` moved by an offset of radius between r₁ = 0.1 pixel and r₂ = 0.1 × image width,
+/// log-uniform, in a uniform direction (a density that depends only on the offset's length);
+/// None off the image.
+fn perturbed_raster(cam: &Camera, raster: Vec2, rng: &mut Pcg32) -> Option<Vec2> {
+    let (u1, u2) = (rng.next_f32(), rng.next_f32());
+    let r = log_uniform(0.1, 0.1 * cam.width as f32, u1);
+    let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
+    let p = raster + Vec2::new(r * cos, r * sin);
+    (p.x >= 0.0 && p.y >= 0.0 && p.x < cam.width as f32 && p.y < cam.height as f32).then_some(p)
 }
 
 /// `w` turned by an angle between θ₁ = 10⁻⁴ and θ₂ = 0.1 radian, log-uniform, about a uniform
@@ -123,13 +135,7 @@ impl Mutation for LensPerturbation {
         }
         // a: the first non-specular vertex seen from the lens; the light side keeps 0 … a − 1.
         let a = first_diffuse_from_lens(xp);
-        let (u1, u2) = (rng.next_f32(), rng.next_f32());
-        let r = log_uniform(0.1, 0.1 * cam.width as f32, u1);
-        let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
-        let raster = x.raster() + Vec2::new(r * cos, r * sin);
-        if !(raster.x >= 0.0 && raster.y >= 0.0 && raster.x < cam.width as f32 && raster.y < cam.height as f32) {
-            return None;
-        }
+        let raster = perturbed_raster(cam, x.raster(), rng)?;
         let lens = xp[k - 1];
         let dir = cam.ray_from_lens(lens.p(), raster).dir;
         let mut new = Vec::with_capacity(k - a);
@@ -137,20 +143,14 @@ impl Mutation for LensPerturbation {
         let mut path: Vec<PathVertex> = xp[..a].to_vec();
         path.extend(new.iter().rev());
         path.push(lens);
-        if a == 0 {
-            // L S* E: the new chain must end on a light.
-            if path[0].light == crate::scene::NO_LIGHT || path[0].node != Node::Surface {
-                return None;
-            }
-        } else if !visible(scene, cx.accel, &path[a - 1], &path[a], stats) {
+        // When a = 0 (L S* E) the new chain must end on a light.
+        if !joins(cx, &path, a, stats) {
             return None;
         }
         let forced = Forced { specular: true, ..Default::default() };
         let new_l = evaluate(scene, &path, forced).lum(a);
         let old_l = evaluate(scene, xp, forced).lum(a);
-        let state = State::new(scene, path)?;
-        let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
-        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+        Some(Proposal::with_ratio(State::new(scene, path)?, new_l, old_l))
     }
 }
 
@@ -204,9 +204,7 @@ impl Mutation for CausticPerturbation {
         let forced = Forced { specular: true, perturbed: Some(j), ..Default::default() };
         let new_l = evaluate(scene, &path, forced).lum(k - 1);
         let old_l = evaluate(scene, xp, forced).lum(k - 1);
-        let state = State::new(scene, path)?;
-        let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
-        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+        Some(Proposal::with_ratio(State::new(scene, path)?, new_l, old_l))
     }
 }
 
@@ -230,13 +228,7 @@ impl Mutation for MultiChainPerturbation {
         // … (L|D) D S+ x_a (D) S* E: a, the first non-specular vertex seen from the lens, sees a
         // specular chain towards the light (else the lens perturbation covers the path).
         let a = multi_chain_start(xp)?;
-        let (u1, u2) = (rng.next_f32(), rng.next_f32());
-        let r = log_uniform(0.1, 0.1 * cam.width as f32, u1);
-        let (sin, cos) = (std::f32::consts::TAU * u2).sin_cos();
-        let raster = x.raster() + Vec2::new(r * cos, r * sin);
-        if !(raster.x >= 0.0 && raster.y >= 0.0 && raster.x < cam.width as f32 && raster.y < cam.height as f32) {
-            return None;
-        }
+        let raster = perturbed_raster(cam, x.raster(), rng)?;
         let lens = xp[k - 1];
         // The new vertices from y_{k−2} down, in that order.
         let mut new = Vec::with_capacity(k - 1);
@@ -266,17 +258,11 @@ impl Mutation for MultiChainPerturbation {
         let mut path: Vec<PathVertex> = xp[..s].to_vec();
         path.extend(new.iter().rev());
         path.push(lens);
-        if s == 0 {
-            if path[0].light == crate::scene::NO_LIGHT || path[0].node != Node::Surface {
-                return None;
-            }
-        } else if !visible(scene, cx.accel, &path[s - 1], &path[s], stats) {
+        if !joins(cx, &path, s, stats) {
             return None;
         }
         let new_l = evaluate(scene, &path, forced).lum(s);
         let old_l = evaluate(scene, xp, forced).lum(s);
-        let state = State::new(scene, path)?;
-        let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
-        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+        Some(Proposal::with_ratio(State::new(scene, path)?, new_l, old_l))
     }
 }

@@ -25,11 +25,10 @@
 
 use glam::Vec2;
 
-use super::mutation::{Context, Mutation, Proposal, State, first_diffuse_from_lens};
-use super::path::{Node, PathVertex, extend, trace, uniform_raster, visible};
+use super::mutation::{Context, Mutation, Proposal, State, first_diffuse_from_lens, joins};
+use super::path::{PathVertex, extend, trace, uniform_raster};
 use crate::bsdf::TransportMode;
 use crate::sampling::Pcg32;
-use crate::scene::NO_LIGHT;
 use crate::stats::RayStats;
 
 /// The lens sub-path mutation.
@@ -72,18 +71,13 @@ impl LensSubpath {
         }
         let mut path: Vec<PathVertex> = xp[..a].to_vec();
         path.extend(eye.iter().rev());
-        if a == 0 {
-            // S* E from a light: the chain must end on an emitting surface.
-            if path[0].light == NO_LIGHT || path[0].node != Node::Surface {
-                return None;
-            }
-        } else if !visible(scene, accel, &path[a - 1], &path[a], stats) {
+        // When a = 0 (S* E from a light) the chain must end on an emitting surface.
+        if !joins(cx, &path, a, stats) {
             return None;
         }
         let state = State::new(scene, path)?;
         let (new_l, old_l) = (state.eval.lum(a), x.eval.lum(a));
-        let accept = if old_l > 0.0 { (new_l / old_l).min(1.0) } else { 1.0 };
-        Some(Proposal { state, accept: if accept.is_finite() { accept } else { 0.0 } })
+        Some(Proposal::with_ratio(state, new_l, old_l))
     }
 }
 
