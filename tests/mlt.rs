@@ -404,7 +404,9 @@ fn the_path_tracer_counts_exactly_the_direct_part() {
 // camera-side densities the acceptances are written with: a wrong Jacobian (raster to area,
 // through the specular chain), an offset density that is not symmetric, or a factor left in or
 // out of the forced evaluation shows as a ratio off by far more than the histograms' few per
-// cent.
+// cent. The multi-chain perturbation moves two non-specular vertices at once, a density on a
+// four-dimensional set that disks cannot resolve with affordable samples; it is checked by its
+// image alone against pt's (`each_mutation_type_alone_gives_pts_image`).
 
 use mirage::offline::mlt::mutation::{Context, Mutation, State};
 use mirage::offline::mlt::perturb::{CausticPerturbation, LensPerturbation};
