@@ -283,7 +283,7 @@ fn cmd_render(args: &RenderArgs) -> Result<()> {
             options.pssmlt.chains,
             m.stuck_chains,
             m.b,
-            options.pssmlt.bootstrap,
+            m.bootstrap_states,
             m.bootstrap_nonzero,
             if m.direct > 0 {
                 format!(

@@ -312,7 +312,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().chains)]
     pub mlt_chains: usize,
     /// pssmlt, mlt: independent paths that estimate the image's brightness (the normalisation b)
-    /// and from which the chains start, chosen ∝ their contribution.
+    /// and from which the chains start, chosen ∝ their contribution. pssmlt draws more (up to
+    /// 16×) where a pilot finds that fewer than four a chain would reach the camera.
     #[arg(long, default_value_t = crate::offline::pssmlt::PssmltSettings::default().bootstrap)]
     pub bootstrap: usize,
     /// pssmlt: probability of a large step (every random number drawn anew).

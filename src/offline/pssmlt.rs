@@ -16,9 +16,10 @@
 //! whose expectation over u is the depth-d part of the image, per pixel divided by the pixel
 //! count. Over the joint space (d uniform in 0…D, u) the target is I = (D + 1) · lum(f_d(u)).
 //!
-//! **Normalisation and start-up** (no start-up bias): `bootstrap` independent states, depth
-//! i mod (D + 1) for state i, give b = mean I, an unbiased estimate of ∫ I; each chain starts
-//! from one of them chosen ∝ I (sampling–importance resampling: (b, state) is then a properly
+//! **Normalisation and start-up** (no start-up bias): `bootstrap` independent states, or more
+//! where few paths reach the camera ([`bootstrap_size`], fixed by an independent pilot), spread
+//! over the depths ([`depth_counts`]) and weighted back, give b = mean I, an unbiased estimate
+//! of ∫ I; each chain starts from one of them chosen ∝ I (sampling–importance resampling: (b, state) is then a properly
 //! weighted sample of I, and Metropolis–Hastings steps keep it so). The image is
 //! `b / spp · Σ_k f(x_k) / I(x_k)` over all chains' states.
 //!
@@ -78,7 +79,9 @@ const CONNECT_STREAM: usize = 2;
 pub struct PssmltSettings {
     /// Independent chains.
     pub chains: usize,
-    /// Independent states that estimate the normalisation b and from which chains start.
+    /// Independent states that estimate the normalisation b and from which chains start: at
+    /// least this many, more where the pilot finds few paths that reach the camera
+    /// ([`bootstrap_size`]).
     pub bootstrap: usize,
     /// Probability of a large step (a fresh, independent state).
     pub large_step: f32,
@@ -131,6 +134,8 @@ impl PssmltSettings {
 pub struct PssmltStats {
     /// The normalisation b (mean target luminance over the bootstrap states).
     pub b: f64,
+    /// Bootstrap states drawn ([`bootstrap_size`]), and those with a non-zero value.
+    pub bootstrap_states: u64,
     /// Bootstrap states with a non-zero value.
     pub bootstrap_nonzero: u64,
     /// Large steps proposed and accepted.
@@ -391,16 +396,18 @@ fn target(v: Vec3) -> f64 {
     if l > 0.0 && l.is_finite() { l } else { 0.0 }
 }
 
-/// Per depth: the sum, the sum of squares and the count of the target over a pilot of `n / 4`
-/// states with uniformly spread depths and Russian roulette (cheap).
-fn pilot(
-    scene: &Scene,
-    accel: &Accel,
-    seed: u64,
-    n: usize,
-    depths: usize,
-    pss: &PssmltSettings,
-) -> Vec<(f64, f64, u64)> {
+/// The target's moments over one depth's pilot states.
+#[derive(Clone, Copy, Debug, Default)]
+struct Moments {
+    sum: f64,
+    sum2: f64,
+    count: u64,
+    nonzero: u64,
+}
+
+/// Per depth: the target's moments over a pilot of `n / 4` states with uniformly spread depths
+/// and Russian roulette (cheap).
+fn pilot(scene: &Scene, accel: &Accel, seed: u64, n: usize, depths: usize, pss: &PssmltSettings) -> Vec<Moments> {
     let pilot_n = (n / 4).max(depths) as u64;
     let values: Vec<(usize, f64)> = (0..pilot_n)
         .into_par_iter()
@@ -411,11 +418,13 @@ fn pilot(
             (d, target(evaluate(scene, accel, &mut sampler, d, true, paths, &mut st).value))
         })
         .collect();
-    let mut moments = vec![(0.0f64, 0.0f64, 0u64); depths];
+    let mut moments = vec![Moments::default(); depths];
     for (d, w) in values {
-        moments[d].0 += w;
-        moments[d].1 += w * w;
-        moments[d].2 += 1;
+        let m = &mut moments[d];
+        m.sum += w;
+        m.sum2 += w * w;
+        m.count += 1;
+        m.nonzero += u64::from(w > 0.0);
     }
     moments
 }
@@ -478,16 +487,16 @@ fn direct_share(scene: &Scene, accel: &Accel, seed: u64, max_depth: u32, stats: 
 /// of b for a given n), half ∝ 1/(d + 1), so that a depth the pilot missed still gets its share;
 /// at least one per depth. The allocation changes only the variance of b: each state is weighted
 /// by n_total / n_d. Depths below `first` (the direct part, path traced) get none.
-fn depth_counts(moments: &[(f64, f64, u64)], n: usize, first: usize) -> Vec<usize> {
+fn depth_counts(moments: &[Moments], n: usize, first: usize) -> Vec<usize> {
     let depths = moments.len();
     if first >= depths {
         return vec![0; depths];
     }
     let sigma: Vec<f64> = moments
         .iter()
-        .map(|&(s1, s2, k)| {
-            let k = k.max(1) as f64;
-            (s2 / k - (s1 / k).powi(2)).max(0.0).sqrt()
+        .map(|m| {
+            let k = m.count.max(1) as f64;
+            (m.sum2 / k - (m.sum / k).powi(2)).max(0.0).sqrt()
         })
         .collect();
     let sigma_total: f64 = sigma[first..].iter().sum();
@@ -502,6 +511,40 @@ fn depth_counts(moments: &[(f64, f64, u64)], n: usize, first: usize) -> Vec<usiz
             ((p * n as f64).round() as usize).max(1)
         })
         .collect()
+}
+
+/// Non-zero bootstrap states wanted per chain: so many distinct starts that chains chosen ∝
+/// their target rarely share one, and b rests on thousands of paths (4 was no better at 5.33 s
+/// and took more than half of it).
+pub const BOOTSTRAP_NONZERO_PER_CHAIN: usize = 2;
+
+/// The bootstrap's size: `pss.bootstrap`, or more (up to 16×) so that the states, spread over
+/// the depths as [`depth_counts`] spreads them, hold [`BOOTSTRAP_NONZERO_PER_CHAIN`] non-zero
+/// states a chain by the pilot's non-zero fraction of each depth. The pilot is independent of
+/// the bootstrap, so the size is fixed before the bootstrap is drawn and b stays unbiased (a
+/// bootstrap that ran until it had found enough would not be). On the box with small holes
+/// (light-box-thick) the default 100 000 states held 380 non-zero ones for 1000 chains: b
+/// varied by ±20 % over seeds, several chains started from each bright state, and the chains,
+/// which accept one large step in 1000 there, stayed where they started. Sized by this rule
+/// (≈ 730 000 states) the median excess nMSE over six seeds at 5.33 s fell from 58 to 13, and on
+/// the thick-walled slit from 1.9 to 1.6 (benches/results/2026-12-07-pssmlt-bootstrap.md).
+fn bootstrap_size(moments: &[Moments], pss: &PssmltSettings, first: usize) -> usize {
+    let shares = depth_counts(moments, pss.bootstrap, first);
+    let total: usize = shares.iter().sum();
+    if total == 0 {
+        return pss.bootstrap;
+    }
+    let fraction: f64 = shares
+        .iter()
+        .zip(moments)
+        .map(|(&n, m)| n as f64 / total as f64 * m.nonzero as f64 / m.count.max(1) as f64)
+        .sum();
+    let want = (BOOTSTRAP_NONZERO_PER_CHAIN * pss.chains) as f64;
+    if !(fraction > 0.0) {
+        return pss.bootstrap;
+    }
+    let cap = pss.bootstrap.saturating_mul(16).min(100_000_000);
+    ((want / fraction).ceil() as usize).clamp(pss.bootstrap, cap.max(pss.bootstrap))
 }
 
 /// Stratified first camera-stream numbers of the `count` bootstrap states of one depth: the
@@ -595,7 +638,8 @@ pub fn render_pssmlt(
     let moments = pilot(scene, accel, seed, pss.bootstrap, depths, pss);
     let direct = pss.direct.unwrap_or(u32::from(share >= AUTO_DIRECT_SHARE));
     let first_depth = if direct > 0 { FIRST_CHAIN_DEPTH } else { 0 };
-    let counts = depth_counts(&moments, pss.bootstrap, first_depth);
+    let n_states = bootstrap_size(&moments, pss, first_depth);
+    let counts = depth_counts(&moments, n_states, first_depth);
     let n_boot: usize = counts.iter().sum();
     let strata = {
         let depth_of: Vec<u32> =
@@ -628,6 +672,7 @@ pub fn render_pssmlt(
     let mut chain_stats = PssmltStats {
         // No states when the direct part takes every depth (--max-depth 1).
         b: if n_boot > 0 { total / n_boot as f64 } else { 0.0 },
+        bootstrap_states: n_boot as u64,
         bootstrap_nonzero: boot.iter().filter(|(w, _)| *w > 0.0).count() as u64,
         ..Default::default()
     };
@@ -754,6 +799,28 @@ pub fn render_pssmlt(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bootstrap grows as 1 / (the non-zero fraction the chains' depths would see), from
+    /// `--bootstrap` up to 16× it, and never shrinks; depths below `first` do not count.
+    #[test]
+    fn the_bootstrap_grows_where_few_paths_reach_the_camera() {
+        let pss = PssmltSettings { chains: 1000, bootstrap: 100_000, ..Default::default() };
+        let depth = |count: u64, nonzero: u64| Moments { sum: nonzero as f64, sum2: nonzero as f64, count, nonzero };
+        // Every depth 1 % non-zero: 2000 wanted / 1 % = 200 000.
+        let one_percent = vec![depth(1000, 10); 4];
+        assert_eq!(bootstrap_size(&one_percent, &pss, 0), 200_000);
+        // Plenty reach the camera: the size given.
+        assert_eq!(bootstrap_size(&[depth(1000, 500); 4], &pss, 0), 100_000);
+        // Almost none: capped at 16×; none at all: the size given.
+        assert_eq!(bootstrap_size(&[depth(100_000, 1); 4], &pss, 0), 1_600_000);
+        assert_eq!(bootstrap_size(&[depth(1000, 0); 4], &pss, 0), 100_000);
+        // A bright direct part (depths 0-1) path traced apart does not count.
+        let mut split = one_percent.clone();
+        split[0] = depth(1000, 1000);
+        split[1] = depth(1000, 1000);
+        assert_eq!(bootstrap_size(&split, &pss, 2), 200_000);
+        assert!(bootstrap_size(&split, &pss, 0) < 200_000);
+    }
 
     /// The state's first `n` numbers of each stream, without a step.
     fn peek(s: &MltSampler, n: usize) -> Vec<f32> {
