@@ -226,23 +226,8 @@ fn density_near(
     n: u64,
     sample: impl Fn(&mut Pcg32) -> Option<PathVertex> + Sync,
 ) -> f64 {
-    // Draw in batches of `n` until at least 1000 land in the disk (≈ 3 % precision), at most 8.
-    let (mut hits, mut drawn) = (0u64, 0u64);
-    while hits < 1000 && drawn < 8 * n {
-        hits += (drawn..drawn + n)
-            .into_par_iter()
-            .map(|i| {
-                let mut rng = Pcg32::from_words(&[0xD15, i]);
-                match sample(&mut rng) {
-                    Some(v) if v.sp.tri == target.sp.tri && (v.p() - target.p()).length() < eps => 1,
-                    _ => 0,
-                }
-            })
-            .sum::<u64>();
-        drawn += n;
-    }
-    assert!(hits >= 300, "too few hits ({hits} of {drawn}) for a density estimate");
-    hits as f64 / (drawn as f64 * std::f64::consts::PI * (eps as f64).powi(2))
+    // At least 1000 hits: ≈ 3 % precision.
+    density_near_n(target, eps, n, 1000, sample)
 }
 
 /// One walk step from the end of `walk` (in walk order) in `mode`: the vertex it reaches.
@@ -412,7 +397,8 @@ use mirage::offline::mlt::mutation::{Context, Mutation, State};
 use mirage::offline::mlt::perturb::{CausticPerturbation, LensPerturbation};
 use mirage::offline::mlt::subpath::LensSubpath;
 
-/// Like [`density_near`], with at least `want` hits (precision ≈ 1/√want).
+/// [`density_near`] with at least `want` hits (precision ≈ 1/√want): draws in batches of `n`,
+/// at most 32 of them.
 fn density_near_n(
     target: &PathVertex,
     eps: f32,
@@ -425,7 +411,7 @@ fn density_near_n(
         hits += (drawn..drawn + n)
             .into_par_iter()
             .map(|i| {
-                let mut rng = Pcg32::from_words(&[0xD16, i]);
+                let mut rng = Pcg32::from_words(&[0xD15, i]);
                 match sample(&mut rng) {
                     Some(v) if v.sp.tri == target.sp.tri && (v.p() - target.p()).length() < eps => 1,
                     _ => 0,
@@ -434,7 +420,7 @@ fn density_near_n(
             .sum::<u64>();
         drawn += n;
     }
-    assert!(hits >= want / 2, "too few hits ({hits} of {drawn}) for a density estimate");
+    assert!(hits >= want * 3 / 10, "too few hits ({hits} of {drawn}) for a density estimate");
     hits as f64 / (drawn as f64 * std::f64::consts::PI * (eps as f64).powi(2))
 }
 
