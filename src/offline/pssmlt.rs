@@ -405,17 +405,33 @@ struct Moments {
     nonzero: u64,
 }
 
-/// Per depth: the target's moments over a pilot of `n / 4` states with uniformly spread depths
-/// and Russian roulette (cheap).
-fn pilot(scene: &Scene, accel: &Accel, seed: u64, n: usize, depths: usize, pss: &PssmltSettings) -> Vec<Moments> {
-    let pilot_n = (n / 4).max(depths) as u64;
-    let values: Vec<(usize, f64)> = (0..pilot_n)
-        .into_par_iter()
-        .map_init(Paths::default, |paths, i| {
+/// Per depth: the target's moments over a pilot of `n / 4` states, spread over the depths from
+/// `first` as [`depth_counts`] spreads states it knows nothing about, each followed to its full
+/// depth as the bootstrap follows it (so the pilot's non-zero fraction and spread are the
+/// bootstrap's). Spread evenly over the 129 depths of the default `--max-depth` and ended by
+/// Russian roulette, the pilot gave each depth 194 states and saw one path in 4000 reach the
+/// camera on light-box-thick, where the bootstrap sees one in 150: it found one non-zero state
+/// or none, the Neyman half of the bootstrap then followed that one state, and with none the
+/// bootstrap kept its smallest size (seed 6: b 40 % low).
+fn pilot(
+    scene: &Scene,
+    accel: &Accel,
+    seed: u64,
+    n: usize,
+    depths: usize,
+    first: usize,
+    pss: &PssmltSettings,
+) -> Vec<Moments> {
+    let counts = depth_counts(&vec![Moments::default(); depths], (n / 4).max(depths), first);
+    let depth_of: Vec<usize> = counts.iter().enumerate().flat_map(|(d, &k)| std::iter::repeat_n(d, k)).collect();
+    let values: Vec<(usize, f64)> = depth_of
+        .par_iter()
+        .enumerate()
+        .map_init(Paths::default, |paths, (i, &d)| {
             let mut st = RayStats::default();
-            let mut sampler = MltSampler::new(Pcg32::from_words(&[seed, TAG_PILOT, i]), pss.sigma, pss.large_step);
-            let d = i as usize % depths;
-            (d, target(evaluate(scene, accel, &mut sampler, d, true, paths, &mut st).value))
+            let mut sampler =
+                MltSampler::new(Pcg32::from_words(&[seed, TAG_PILOT, i as u64]), pss.sigma, pss.large_step);
+            (d, target(evaluate(scene, accel, &mut sampler, d, false, paths, &mut st).value))
         })
         .collect();
     let mut moments = vec![Moments::default(); depths];
@@ -482,11 +498,23 @@ fn direct_share(scene: &Scene, accel: &Accel, seed: u64, max_depth: u32, stats: 
     if total > 0.0 { (direct / total).min(1.0) } else { 0.0 }
 }
 
-/// How many bootstrap states each depth gets, `n` in all: half in proportion to the pilot's
-/// estimate of each depth's standard deviation (Neyman's allocation, which minimises the variance
-/// of b for a given n), half ∝ 1/(d + 1), so that a depth the pilot missed still gets its share;
-/// at least one per depth. The allocation changes only the variance of b: each state is weighted
-/// by n_total / n_d. Depths below `first` (the direct part, path traced) get none.
+/// Pilot states of a depth that must be non-zero before its standard deviation steers the
+/// bootstrap: with fewer, the estimate is one or two paths' values (the pilot's Russian roulette
+/// makes them spikes), and following it gave one depth half of the bootstrap on the pilot's
+/// single hit.
+pub const NEYMAN_MIN_NONZERO: u64 = 16;
+
+/// How many bootstrap states each depth gets, `n` in all: half by Neyman's allocation for a
+/// cost, in proportion to the pilot's estimate of each depth's standard deviation over the square
+/// root of its cost (d + 2 vertices; this minimises the variance of b for the rays spent), among
+/// the depths where the pilot found at least [`NEYMAN_MIN_NONZERO`] non-zero states; the other
+/// half ∝ 1/(d + 1), so that a depth the pilot missed still gets its share (all of it so when the
+/// pilot resolved no depth). At least one state per depth. The allocation changes only the
+/// variance of b: each state is weighted by n_total / n_d. Depths below `first` (the direct part,
+/// path traced) get none. (A floor ∝ 1/(d + 1)², which spends fewer rays on deep depths, left
+/// the glass sphere's rare long paths inside the sphere so few states that b's mean over 8 seeds
+/// came out 2.2 % low at z −4.2 in `tests/pssmlt.rs`: a skewed estimate whose spread the seeds
+/// under-state.)
 fn depth_counts(moments: &[Moments], n: usize, first: usize) -> Vec<usize> {
     let depths = moments.len();
     if first >= depths {
@@ -494,57 +522,69 @@ fn depth_counts(moments: &[Moments], n: usize, first: usize) -> Vec<usize> {
     }
     let sigma: Vec<f64> = moments
         .iter()
-        .map(|m| {
-            let k = m.count.max(1) as f64;
-            (m.sum2 / k - (m.sum / k).powi(2)).max(0.0).sqrt()
+        .enumerate()
+        .map(|(d, m)| {
+            if m.nonzero < NEYMAN_MIN_NONZERO {
+                return 0.0;
+            }
+            let k = m.count as f64;
+            (m.sum2 / k - (m.sum / k).powi(2)).max(0.0).sqrt() / ((d + 2) as f64).sqrt()
         })
         .collect();
     let sigma_total: f64 = sigma[first..].iter().sum();
-    let harmonic: f64 = (first..depths).map(|d| 1.0 / (d + 1) as f64).sum();
+    let floor = |d: usize| 1.0 / (d + 1) as f64;
+    let floor_total: f64 = (first..depths).map(floor).sum();
+    let neyman_share = if sigma_total > 0.0 { 0.5 } else { 0.0 };
     (0..depths)
         .map(|d| {
             if d < first {
                 return 0;
             }
-            let neyman = if sigma_total > 0.0 { sigma[d] / sigma_total } else { 1.0 / (depths - first) as f64 };
-            let p = 0.5 * neyman + 0.5 / ((d + 1) as f64 * harmonic);
+            let neyman = if sigma_total > 0.0 { sigma[d] / sigma_total } else { 0.0 };
+            let p = neyman_share * neyman + (1.0 - neyman_share) * floor(d) / floor_total;
             ((p * n as f64).round() as usize).max(1)
         })
         .collect()
 }
 
 /// Non-zero bootstrap states wanted per chain: so many distinct starts that chains chosen ∝
-/// their target rarely share one, and b rests on thousands of paths (4 was no better at 5.33 s
-/// and took more than half of it).
-pub const BOOTSTRAP_NONZERO_PER_CHAIN: usize = 2;
+/// their target rarely share one, and b rests on thousands of paths. 4 rather than 2 since the
+/// pilot follows paths to their full depth: measured with a floor ∝ 1/(d + 1)² (since put back
+/// to 1/(d + 1), see [`depth_counts`]), the median excess nMSE over 8 seeds at 5.33 s was 7.8 with
+/// 2 and 4.7 with 4 on light-box-thick, 0.82 and 0.73 on ajar-door-thick
+/// (benches/results/2026-12-07-pssmlt-pilot.md). With the pilot ended by Russian roulette, 4
+/// was no better and took more than half of 5.33 s.
+pub const BOOTSTRAP_NONZERO_PER_CHAIN: usize = 4;
 
 /// The bootstrap's size: `pss.bootstrap`, or more (up to 16×) so that the states, spread over
 /// the depths as [`depth_counts`] spreads them, hold [`BOOTSTRAP_NONZERO_PER_CHAIN`] non-zero
-/// states a chain by the pilot's non-zero fraction of each depth. The pilot is independent of
-/// the bootstrap, so the size is fixed before the bootstrap is drawn and b stays unbiased (a
-/// bootstrap that ran until it had found enough would not be). The pilot's paths end by Russian
-/// roulette, so its fraction is low and the size errs large (on light-box-thick, 2.9 non-zero
-/// states a chain for the 2 asked). On the box with small holes
-/// (light-box-thick) the default 100 000 states held 380 non-zero ones for 1000 chains: b
+/// states a chain by the pilot's non-zero fraction of each depth. When the pilot found no
+/// non-zero state in the chains' depths, the fraction is taken as one over the pilot's states
+/// there (it is likely below that): the size is then near its cap, not its floor. The pilot is
+/// independent of the bootstrap, so the size is fixed before the bootstrap is drawn and b stays
+/// unbiased (a bootstrap that ran until it had found enough would not be). On the box with small
+/// holes (light-box-thick) the default 100 000 states held 380 non-zero ones for 1000 chains: b
 /// varied by ±20 % over seeds, several chains started from each bright state, and the chains,
-/// which accept one large step in 1000 there, stayed where they started. Sized by this rule
-/// (≈ 730 000 states) the median excess nMSE over six seeds at 5.33 s fell from 58 to 13, and on
-/// the thick-walled slit from 1.9 to 1.6 (benches/results/2026-12-07-pssmlt-bootstrap.md).
+/// which accept one large step in 1000 there, stayed where they started. Sized by this rule the
+/// median excess nMSE over six seeds at 5.33 s fell from 58 to 13, and on the thick-walled slit
+/// from 1.9 to 1.6 (benches/results/2026-12-07-pssmlt-bootstrap.md).
 fn bootstrap_size(moments: &[Moments], pss: &PssmltSettings, first: usize) -> usize {
     let shares = depth_counts(moments, pss.bootstrap, first);
     let total: usize = shares.iter().sum();
     if total == 0 {
         return pss.bootstrap;
     }
-    let fraction: f64 = shares
+    let mut fraction: f64 = shares
         .iter()
         .zip(moments)
-        .map(|(&n, m)| n as f64 / total as f64 * m.nonzero as f64 / m.count.max(1) as f64)
+        .filter(|(_, m)| m.count > 0)
+        .map(|(&n, m)| n as f64 / total as f64 * m.nonzero as f64 / m.count as f64)
         .sum();
-    let want = (BOOTSTRAP_NONZERO_PER_CHAIN * pss.chains) as f64;
     if !(fraction > 0.0) {
-        return pss.bootstrap;
+        let piloted: u64 = moments.iter().skip(first).map(|m| m.count).sum();
+        fraction = 1.0 / piloted.max(1) as f64;
     }
+    let want = (BOOTSTRAP_NONZERO_PER_CHAIN * pss.chains) as f64;
     let cap = pss.bootstrap.saturating_mul(16).min(100_000_000);
     ((want / fraction).ceil() as usize).clamp(pss.bootstrap, cap.max(pss.bootstrap))
 }
@@ -637,9 +677,9 @@ pub fn render_pssmlt(
     // Bootstrap: b and the states chains start from; state i has depth depth_of[i].
     let share =
         if pss.direct.is_none() { direct_share(scene, accel, seed, settings.max_depth, &mut stats) } else { 0.0 };
-    let moments = pilot(scene, accel, seed, pss.bootstrap, depths, pss);
     let direct = pss.direct.unwrap_or(u32::from(share >= AUTO_DIRECT_SHARE));
     let first_depth = if direct > 0 { FIRST_CHAIN_DEPTH } else { 0 };
+    let moments = pilot(scene, accel, seed, pss.bootstrap, depths, first_depth, pss);
     let n_states = bootstrap_size(&moments, pss, first_depth);
     let counts = depth_counts(&moments, n_states, first_depth);
     let n_boot: usize = counts.iter().sum();
@@ -808,20 +848,40 @@ mod tests {
     fn the_bootstrap_grows_where_few_paths_reach_the_camera() {
         let pss = PssmltSettings { chains: 1000, bootstrap: 100_000, ..Default::default() };
         let depth = |count: u64, nonzero: u64| Moments { sum: nonzero as f64, sum2: nonzero as f64, count, nonzero };
-        // Every depth 1 % non-zero: 2000 wanted / 1 % = 200 000.
+        // Every depth 1 % non-zero: 4000 wanted / 1 % = 400 000.
         let one_percent = vec![depth(1000, 10); 4];
-        assert_eq!(bootstrap_size(&one_percent, &pss, 0), 200_000);
+        assert!(bootstrap_size(&one_percent, &pss, 0).abs_diff(400_000) <= 1);
         // Plenty reach the camera: the size given.
         assert_eq!(bootstrap_size(&[depth(1000, 500); 4], &pss, 0), 100_000);
-        // Almost none: capped at 16×; none at all: the size given.
+        // Almost none: capped at 16×. None at all in 4000 pilot states: taken as 1 in 4000, so
+        // 8 000 000, capped (it was the size given, the floor, which left light-box-thick's
+        // seeds 6 and 7 with 100 000 states and b 40 % low on seed 6).
         assert_eq!(bootstrap_size(&[depth(100_000, 1); 4], &pss, 0), 1_600_000);
-        assert_eq!(bootstrap_size(&[depth(1000, 0); 4], &pss, 0), 100_000);
+        assert_eq!(bootstrap_size(&[depth(1000, 0); 4], &pss, 0), 1_600_000);
         // A bright direct part (depths 0-1) path traced apart does not count.
         let mut split = one_percent.clone();
         split[0] = depth(1000, 1000);
         split[1] = depth(1000, 1000);
-        assert_eq!(bootstrap_size(&split, &pss, 2), 200_000);
-        assert!(bootstrap_size(&split, &pss, 0) < 200_000);
+        // (Within one state: the shares' sum rounds.)
+        assert!(bootstrap_size(&split, &pss, 2).abs_diff(400_000) <= 1);
+        assert!(bootstrap_size(&split, &pss, 0) < 400_000);
+    }
+
+    /// A depth steers the Neyman half only when the pilot found enough non-zero states there:
+    /// one hit among 194 (light-box-thick's pilot when it was spread evenly) leaves the
+    /// allocation ∝ 1/(d + 1); sixteen give that depth the Neyman half.
+    #[test]
+    fn one_pilot_hit_does_not_steer_the_bootstrap() {
+        let hits = |nonzero: u64| Moments { sum: nonzero as f64, sum2: nonzero as f64 * 100.0, count: 194, nonzero };
+        let mut moments = vec![hits(0); 6];
+        let harmonic = depth_counts(&moments, 10_000, 2);
+        moments[3] = hits(1);
+        assert_eq!(depth_counts(&moments, 10_000, 2), harmonic);
+        assert_eq!(&harmonic[..2], &[0, 0]);
+        assert!(harmonic.windows(2).skip(2).all(|w| w[0] > w[1]), "{harmonic:?}");
+        moments[3] = hits(16);
+        let steered = depth_counts(&moments, 10_000, 2);
+        assert!(steered[3] > 5000 && steered[3] < 5000 + harmonic[3] + 2, "{steered:?}");
     }
 
     /// The state's first `n` numbers of each stream, without a step.
