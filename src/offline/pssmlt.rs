@@ -499,9 +499,8 @@ fn direct_share(scene: &Scene, accel: &Accel, seed: u64, max_depth: u32, stats: 
 }
 
 /// Pilot states of a depth that must be non-zero before its standard deviation steers the
-/// bootstrap: with fewer, the estimate is one or two paths' values (the pilot's Russian roulette
-/// makes them spikes), and following it gave one depth half of the bootstrap on the pilot's
-/// single hit.
+/// bootstrap: with fewer, the estimate is one or two paths' values, and following it gave one
+/// depth half of the bootstrap on the pilot's single hit.
 pub const NEYMAN_MIN_NONZERO: u64 = 16;
 
 /// How many bootstrap states each depth gets, `n` in all: half by Neyman's allocation for a
