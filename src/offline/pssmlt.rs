@@ -98,7 +98,8 @@ pub struct PssmltSettings {
 /// Measured (5.33 s, 256×192, excess nMSE, benches/results/2026-12-07-pssmlt-direct.md): the
 /// split cuts the error 45× on the Cornell box (77 % of its light there), 2.7× on the glass
 /// sphere (73 %), a little on the box with holes (30 %), and raises it 1.8× on the thick-walled
-/// slit (1.1 %), whose chains lose a fifth of their time to it.
+/// slit (1.1 %), whose chains lose a fifth of their time to it. The threshold picks the better
+/// setting on sunlit-room (48 %: on), direct-indirect and left-right (under a fifth: off) too.
 pub const AUTO_DIRECT_SHARE: f64 = 0.2;
 
 /// The first path depth the chains take when the direct part is path traced.
